@@ -1,0 +1,22 @@
+"""The one error root of pipemap.
+
+Library code raises a subclass of :class:`PipemapError` whose message names the
+offending value; only the command line catches it, prints it as one line and
+exits with status 2. Any other exception is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+__all__ = ["PipemapError", "InputError", "LocalizerError"]
+
+
+class PipemapError(Exception):
+    """Base of every error that is the user's input, not a bug."""
+
+
+class InputError(PipemapError):
+    """A file, folder, flag or value given by the user is missing or malformed."""
+
+
+class LocalizerError(PipemapError):
+    """The localizer was given data it cannot work with (sizes, counts, settings)."""

@@ -1,0 +1,1 @@
+"""recorder: not built yet (see the open issues)."""

@@ -1,0 +1,1 @@
+"""replay: not built yet (see the open issues)."""
