@@ -1,0 +1,71 @@
+"""The localizer: junction recognition and topological mapping, pure.
+
+Depends on numpy, scipy, opencv and networkx only: no files, no simulator, no logs,
+no clock. Its inputs and outputs are the types exported here.
+"""
+
+from __future__ import annotations
+
+from localizer.fastmatch import FastConfig, FastMatcher, PreparedSet, pairwise_matches, prepare
+from localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
+from localizer.localizer import (
+    DEFAULT_THRESHOLD,
+    Decision,
+    Localizer,
+    LocalizerConfig,
+    ProbeKind,
+    ProbeOutcome,
+    ProbeRequest,
+    ProbeSource,
+    decide,
+    probe_plan,
+)
+from localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
+from localizer.similarity import (
+    PairPeak,
+    SetMatch,
+    best_offset,
+    ncc_same,
+    pair_peak,
+    pinhole_rotation_rad,
+    reference_match,
+    relative_rotation_rad,
+    wrap_angle_rad,
+)
+from localizer.topomap import MapEdge, TopoMap
+
+__all__ = [
+    "DEFAULT_FOV_RAD",
+    "DEFAULT_KEEP_TOP_FRACTION",
+    "DEFAULT_THRESHOLD",
+    "FLOAT_DECIMALS",
+    "Decision",
+    "FastConfig",
+    "FastMatcher",
+    "ImageSet",
+    "Localizer",
+    "LocalizerConfig",
+    "MapEdge",
+    "PairPeak",
+    "PreparedSet",
+    "ProbeKind",
+    "ProbeOutcome",
+    "ProbeRequest",
+    "ProbeSource",
+    "SetMatch",
+    "TopoMap",
+    "best_offset",
+    "decide",
+    "decision_record",
+    "dumps_document",
+    "map_document",
+    "ncc_same",
+    "pair_peak",
+    "pinhole_rotation_rad",
+    "pairwise_matches",
+    "prepare",
+    "probe_plan",
+    "reference_match",
+    "relative_rotation_rad",
+    "wrap_angle_rad",
+]

@@ -1,0 +1,221 @@
+"""Junction recognition: the paper's Algorithms 1 (decide) and 3 (active vision).
+
+:class:`Localizer` keeps the image set of every known junction and the topological
+map. For each junction visit it matches the visit's image set with every known one
+(:class:`localizer.fastmatch.FastMatcher`), and when the best similarity is below
+the threshold it asks its caller for probe image sets, in the paper's order, until
+one improves the best similarity. Then it decides known or new and updates the map.
+
+Active vision is a protocol, not motion: the caller passes a :class:`ProbeSource`
+that turns a :class:`ProbeRequest` into an image set (the simulator moves the robot
+and sweeps; a replay looks the sweep up in the log) or answers ``None`` when it
+cannot, which the decision records.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
+from localizer.imageset import ImageSet
+from localizer.similarity import SetMatch
+from localizer.topomap import TopoMap
+from pipemap.errors import LocalizerError
+
+__all__ = [
+    "DEFAULT_THRESHOLD",
+    "Decision",
+    "Localizer",
+    "LocalizerConfig",
+    "ProbeKind",
+    "ProbeOutcome",
+    "ProbeRequest",
+    "ProbeSource",
+    "decide",
+    "probe_plan",
+]
+
+#: The paper's known/new threshold on image-set similarity.
+DEFAULT_THRESHOLD = 0.36
+
+
+class ProbeKind(enum.Enum):
+    """The paper's active-vision moves, in the order they are tried."""
+
+    ROTATE = "rotate"
+    FORWARD = "forward"
+    BACK = "back"
+    LEFT = "left"
+    RIGHT = "right"
+
+
+@dataclass(frozen=True)
+class ProbeRequest:
+    """One active-vision move, relative to the pose of the original sweep.
+
+    ``yaw_rad`` turns the robot in place (positive counter-clockwise seen from
+    above); ``forward_m`` and ``left_m`` move it in its own frame.
+    """
+
+    kind: ProbeKind
+    yaw_rad: float = 0.0
+    forward_m: float = 0.0
+    left_m: float = 0.0
+
+
+class ProbeSource(Protocol):
+    """Supplies the image set seen after a probe move, or ``None`` if it cannot."""
+
+    def probe(self, request: ProbeRequest) -> ImageSet | None:
+        """Perform (or look up) ``request`` and return the sweep taken after it."""
+        ...
+
+
+@dataclass(frozen=True)
+class ProbeOutcome:
+    """What one probe gave: its best similarity, or ``None`` if it was not supplied."""
+
+    request: ProbeRequest
+    similarity: float | None
+    improved: bool
+
+
+@dataclass(frozen=True)
+class LocalizerConfig:
+    """Settings of the localizer; the defaults are the paper's."""
+
+    threshold: float = DEFAULT_THRESHOLD
+    active_vision: bool = True
+    probe_distance_m: float = 0.03
+    fast: FastConfig = field(default_factory=FastConfig)
+
+    def __post_init__(self) -> None:
+        if not -1.0 <= self.threshold <= 1.0:
+            raise LocalizerError(f"threshold must be in [-1, 1], got {self.threshold}")
+        if not (self.probe_distance_m >= 0.0 and math.isfinite(self.probe_distance_m)):
+            raise LocalizerError(f"probe distance must be >= 0 m, got {self.probe_distance_m}")
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The localizer's answer for one junction visit.
+
+    ``node`` is the map node of the visit; ``known`` says whether it was recognised.
+    ``candidate`` is the best-matching known node (``None`` on the first visit) and
+    ``match`` its match, from the probe sweep if a probe improved it. ``similarity``
+    is that match's similarity (0.0 with no candidate), ``margin`` the best minus
+    the second-best similarity (``None`` with fewer than two known junctions).
+    ``missing_probes`` counts requested probes the caller could not supply.
+    """
+
+    node: int
+    known: bool
+    candidate: int | None
+    similarity: float
+    margin: float | None
+    match: SetMatch | None
+    probes: tuple[ProbeOutcome, ...] = ()
+
+    @property
+    def missing_probes(self) -> int:
+        """Number of probes requested but not supplied."""
+        return sum(1 for p in self.probes if p.similarity is None)
+
+
+def decide(matches: list[SetMatch], threshold: float) -> tuple[int | None, float, float | None]:
+    """Algorithm 1: the best candidate, its similarity and the margin to the second.
+
+    Ties go to the earliest known junction. The visit is known when the returned
+    similarity is at least ``threshold``.
+    """
+    if not matches:
+        return None, 0.0, None
+    sims = [m.similarity for m in matches]
+    best = max(range(len(sims)), key=lambda i: (sims[i], -i))
+    margin = None
+    if len(sims) > 1:
+        margin = sims[best] - max(s for i, s in enumerate(sims) if i != best)
+    return best, sims[best], margin
+
+
+def probe_plan(estimated_rotation_rad: float, distance_m: float) -> tuple[ProbeRequest, ...]:
+    """The paper's probe order: rotate by the estimated relative angle, then move.
+
+    The rotation turns the robot so that its sweep lines up with the candidate's
+    (the estimate is the candidate's sweep relative to this one).
+    """
+    return (
+        ProbeRequest(ProbeKind.ROTATE, yaw_rad=estimated_rotation_rad),
+        ProbeRequest(ProbeKind.FORWARD, forward_m=distance_m),
+        ProbeRequest(ProbeKind.BACK, forward_m=-distance_m),
+        ProbeRequest(ProbeKind.LEFT, left_m=distance_m),
+        ProbeRequest(ProbeKind.RIGHT, left_m=-distance_m),
+    )
+
+
+class Localizer:
+    """Known/new decisions over a growing database of junctions, and the map."""
+
+    def __init__(self, config: LocalizerConfig | None = None) -> None:
+        self.config = config if config is not None else LocalizerConfig()
+        self._matcher = FastMatcher(self.config.fast)
+        self.map = TopoMap()
+
+    @property
+    def known_count(self) -> int:
+        """Number of junctions known so far."""
+        return len(self._matcher)
+
+    def compare(self, query: ImageSet) -> list[SetMatch]:
+        """The query's match with every known junction, in node order."""
+        return self._matcher.match(self._matcher.prepare(query))
+
+    def _best(self, prepared: PreparedSet) -> tuple[list[SetMatch], int | None, float, float | None]:
+        matches = self._matcher.match(prepared)
+        best, sim, margin = decide(matches, self.config.threshold)
+        return matches, best, sim, margin
+
+    def localize(self, query: ImageSet, probes: ProbeSource | None = None) -> Decision:
+        """Decide known or new for one junction visit, and add the visit to the map.
+
+        The image set stored for a new junction is the visit's own sweep (not a
+        probe's), so every junction is remembered as seen from its centre.
+        """
+        prepared = self._matcher.prepare(query)
+        matches, best, sim, margin = self._best(prepared)
+        match = matches[best] if best is not None else None
+        outcomes: list[ProbeOutcome] = []
+        weak = best is not None and sim < self.config.threshold
+        if weak and self.config.active_vision and probes is not None and match is not None:
+            for request in probe_plan(match.rotation_pinhole_rad, self.config.probe_distance_m):
+                probe_set = probes.probe(request)
+                if probe_set is None:
+                    outcomes.append(ProbeOutcome(request, None, False))
+                    continue
+                query.check_comparable(probe_set)
+                p_matches, p_best, p_sim, p_margin = self._best(self._matcher.prepare(probe_set))
+                improved = p_sim > sim
+                outcomes.append(ProbeOutcome(request, p_sim, improved))
+                if improved:
+                    best, sim, margin = p_best, p_sim, p_margin
+                    match = p_matches[p_best] if p_best is not None else None
+                    break
+        known = best is not None and sim >= self.config.threshold
+        if known:
+            assert best is not None
+            node = best
+        else:
+            node = self._matcher.add(prepared)
+        self.map.visit(node)
+        return Decision(
+            node=node,
+            known=known,
+            candidate=best,
+            similarity=sim,
+            margin=margin,
+            match=match,
+            probes=tuple(outcomes),
+        )

@@ -1,0 +1,65 @@
+"""The map document: the topological map and its visits as deterministic JSON.
+
+One format for every producer (``pipemap map`` over image folders, and replays of
+logs): ``{"nodes": [{"id"}], "edges": [{"u", "v", "label"}], "visits": [{"set",
+"node", "known", "similarity", "margin", ...}]}``. Floats are rounded to 6 decimals
+so that the same input gives the same bytes on any machine.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from typing import Any
+
+from localizer.localizer import Decision
+from localizer.topomap import TopoMap
+
+__all__ = ["FLOAT_DECIMALS", "decision_record", "dumps_document", "map_document"]
+
+#: Decimals kept in JSON floats: far below any meaningful similarity difference.
+FLOAT_DECIMALS = 6
+
+
+def _round(value: float | None) -> float | None:
+    if value is None:
+        return None
+    rounded = round(float(value), FLOAT_DECIMALS)
+    return 0.0 if rounded == 0 else rounded  # no "-0.0"
+
+
+def decision_record(label: str, decision: Decision) -> dict[str, Any]:
+    """One visit of the map document."""
+    match = decision.match
+    return {
+        "set": label,
+        "node": decision.node,
+        "known": decision.known,
+        "similarity": _round(decision.similarity),
+        "margin": _round(decision.margin),
+        "candidate": decision.candidate,
+        "image_shift": None if match is None else match.image_shift,
+        "pixel_shift": None if match is None else _round(match.pixel_shift),
+        "rotation_rad": None if match is None else _round(match.rotation_rad),
+        "rotation_pinhole_rad": None if match is None else _round(match.rotation_pinhole_rad),
+        "probes": [
+            {
+                "kind": p.request.kind.value,
+                "similarity": _round(p.similarity),
+                "improved": p.improved,
+            }
+            for p in decision.probes
+        ],
+    }
+
+
+def map_document(topomap: TopoMap, visits: Sequence[tuple[str, Decision]]) -> dict[str, Any]:
+    """The whole document: the map, then each visit with its label and decision."""
+    doc = topomap.to_dict()
+    doc["visits"] = [decision_record(label, d) for label, d in visits]
+    return doc
+
+
+def dumps_document(doc: dict[str, Any]) -> str:
+    """Deterministic JSON text of a document (key order as built, two-space indent)."""
+    return json.dumps(doc, indent=2, allow_nan=False) + "\n"

@@ -1,0 +1,92 @@
+"""The topological map of the paper's Algorithm 4.
+
+A node per junction, numbered 0, 1, 2, ... in first-visit order; an edge between
+two consecutively visited junctions, labelled 1, 2, 3, ... in the order the edges
+are first traversed. Traversing an edge again adds nothing. Two different pipes
+between the same pair of junctions are one edge: the map records adjacency.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import networkx as nx
+
+__all__ = ["TopoMap", "MapEdge"]
+
+
+@dataclass(frozen=True)
+class MapEdge:
+    """An edge of the map: its two junctions (in first-traversal order) and label."""
+
+    u: int
+    v: int
+    label: int
+
+
+class TopoMap:
+    """A growing topological map. :meth:`visit` is Algorithm 4's update step."""
+
+    def __init__(self) -> None:
+        self._graph: nx.Graph = nx.Graph()
+        self._visits: list[int] = []
+
+    @property
+    def graph(self) -> nx.Graph:
+        """A copy of the map as a networkx graph; edges carry ``label``."""
+        return self._graph.copy()
+
+    @property
+    def visits(self) -> tuple[int, ...]:
+        """The node of every visit, in order."""
+        return tuple(self._visits)
+
+    @property
+    def node_count(self) -> int:
+        """Number of junctions in the map."""
+        return int(self._graph.number_of_nodes())
+
+    def visit(self, node: int) -> MapEdge | None:
+        """Record that the robot is at ``node``; returns the edge it added, if any.
+
+        ``node`` must be a known node or the next new one (``node_count``).
+        """
+        if not 0 <= node <= self.node_count:
+            raise ValueError(f"node {node} is neither known nor the next new node")
+        if node == self.node_count:
+            self._graph.add_node(node)
+        added = None
+        if self._visits:
+            previous = self._visits[-1]
+            if not self._graph.has_edge(previous, node):
+                label = self._graph.number_of_edges() + 1
+                self._graph.add_edge(previous, node, label=label)
+                added = MapEdge(previous, node, label)
+        self._visits.append(node)
+        return added
+
+    def edges(self) -> list[MapEdge]:
+        """Edges in label order, each as first traversed."""
+        found = [
+            MapEdge(int(u), int(v), int(data["label"]))
+            for u, v, data in self._graph.edges(data=True)
+        ]
+        ordered = sorted(found, key=lambda e: e.label)
+        # networkx keeps no direction; restore first-traversal order from the visits.
+        first = {}
+        for a, b in zip(self._visits, self._visits[1:]):
+            first.setdefault(frozenset((a, b)), (a, b))
+        return [MapEdge(*first[frozenset((e.u, e.v))], e.label) for e in ordered]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nodes in id order and edges in label order, as plain JSON-ready data."""
+        return {
+            "nodes": [{"id": int(n)} for n in sorted(self._graph.nodes)],
+            "edges": [{"u": e.u, "v": e.v, "label": e.label} for e in self.edges()],
+        }
+
+    def to_json(self) -> str:
+        """Deterministic JSON of :meth:`to_dict`: the same map gives the same bytes."""
+        return json.dumps(self.to_dict(), indent=2) + "\n"

@@ -1,0 +1,53 @@
+"""Shared fixtures: the paper's own image sets, from ``../shared/paper_imagesets``."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from localizer import ImageSet
+from pipemap.folders import load_image_set, read_info
+
+REPO = Path(__file__).resolve().parents[1]
+PAPER_SETS = Path(os.environ.get("PIPEMAP_PAPER_IMAGESETS", REPO.parent / "shared" / "paper_imagesets"))
+#: Two sets show the same junction when their recorded x, y are this close (README there).
+SAME_JUNCTION_M = 0.15
+
+
+@dataclass(frozen=True)
+class PaperSet:
+    """One of the paper's image sets with its recorded camera pose (ground truth)."""
+
+    name: str
+    path: Path
+    images: ImageSet
+    x_m: float
+    y_m: float
+    yaw_rad: float
+
+    def same_junction(self, other: PaperSet) -> bool:
+        return math.hypot(self.x_m - other.x_m, self.y_m - other.y_m) < SAME_JUNCTION_M
+
+
+@pytest.fixture(scope="session")
+def paper_sets() -> dict[str, PaperSet]:
+    """Every set of the shared folder, by folder name (sorted)."""
+    if not PAPER_SETS.is_dir():
+        pytest.fail(f"the paper's image sets are missing: {PAPER_SETS}")
+    out = {}
+    for path in sorted(p for p in PAPER_SETS.iterdir() if p.is_dir()):
+        info = read_info(path)
+        out[path.name] = PaperSet(
+            path.name,
+            path,
+            load_image_set(path),
+            float(info["x"]),
+            float(info["y"]),
+            float(info["yaw"]),
+        )
+    assert len(out) >= 11, f"expected the 11 shared sets, found {sorted(out)}"
+    return out

@@ -1,0 +1,123 @@
+"""The fast path: properties on synthetic sweeps, and agreement with the reference."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from localizer import FastConfig, FastMatcher, ImageSet, pairwise_matches, wrap_angle_rad
+from localizer.fastmatch import prepare
+from pipemap.errors import LocalizerError
+from tests.localizer.synthetic import expected_rotation_rad, panorama, sweep
+
+# One fine-stage pixel (decimated by 4) of the synthetic sweeps, in radians, plus slack.
+ROTATION_TOL_RAD = 4 * 2 * math.pi / (6 * 240) * 1.5
+
+
+def _match(a: ImageSet, b: ImageSet, config: FastConfig | None = None):  # type: ignore[no-untyped-def]
+    matcher = FastMatcher(config)
+    matcher.add(matcher.prepare(b))
+    return matcher.match(matcher.prepare(a))[0]
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), roll=st.integers(0, 5))
+def test_cyclic_permutation_is_found_with_its_image_shift(seed: int, roll: int) -> None:
+    a = sweep(panorama(seed))
+    b = ImageSet(np.roll(a.images, -roll, axis=0), fov_rad=a.fov_rad)  # b[m] = a[m + roll]
+    match = _match(a, b)
+    assert match.image_shift == (-roll) % 6  # image j of a is image j - roll of b
+    assert match.similarity > 0.99
+    assert abs(match.pixel_shift) < 1.0
+    assert match.refined
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), turn=st.integers(-700, 700))
+def test_turned_sweep_gives_the_turn_as_rotation(seed: int, turn: int) -> None:
+    pano = panorama(seed)
+    a, b = sweep(pano), sweep(pano, turn=turn)
+    match = _match(a, b)
+    assert abs(wrap_angle_rad(match.rotation_rad - expected_rotation_rad(turn, pano.shape[1]))) < ROTATION_TOL_RAD
+    assert match.similarity > 0.6
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), turn=st.integers(-110, 110))
+def test_horizontal_shift_within_an_image_step_is_the_pixel_shift(seed: int, turn: int) -> None:
+    a, b = sweep(panorama(seed)), sweep(panorama(seed), turn=turn)
+    match = _match(a, b)
+    assert match.image_shift == 0
+    assert match.pixel_shift == pytest.approx(-turn, abs=4.0)  # one fine-stage pixel
+
+
+@settings(max_examples=8, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), turn=st.integers(-700, 700))
+def test_swapping_the_sets_mirrors_shift_and_rotation(seed: int, turn: int) -> None:
+    # Algorithm 2 pairs image j of A with image j+k of B: the same pairs, read from
+    # B, are offset N-k. The NCC normalizes the two roles differently, so the
+    # similarity is close, not equal.
+    pano = panorama(seed)
+    a, b = sweep(pano), sweep(pano, turn=turn)
+    ab, ba = _match(a, b), _match(b, a)
+    assert ba.image_shift == (6 - ab.image_shift) % 6 or abs(
+        wrap_angle_rad(ab.rotation_rad + ba.rotation_rad)
+    ) < ROTATION_TOL_RAD
+    assert abs(wrap_angle_rad(ab.rotation_rad + ba.rotation_rad)) < 2 * ROTATION_TOL_RAD
+    assert ab.similarity == pytest.approx(ba.similarity, abs=0.05)
+
+
+def test_different_panoramas_score_low() -> None:
+    match = _match(sweep(panorama(1)), sweep(panorama(2)))
+    assert match.similarity < 0.36
+
+
+def test_database_returns_one_match_per_known_set_in_order() -> None:
+    sets = [sweep(panorama(s)) for s in range(5)]
+    matcher = FastMatcher()
+    for s in sets:
+        matcher.add(matcher.prepare(s))
+    matches = matcher.match(matcher.prepare(sets[3]))
+    assert len(matches) == 5
+    assert max(range(5), key=lambda i: matches[i].similarity) == 3
+    assert matches[3].similarity > 0.99
+    # Two candidates are refined by default; the rest keep their screening match.
+    assert sum(m.refined for m in matches) == 2
+
+
+def test_empty_database_matches_nothing() -> None:
+    matcher = FastMatcher()
+    assert matcher.match(matcher.prepare(sweep(panorama(0)))) == []
+
+
+def test_mismatched_sizes_are_refused() -> None:
+    matcher = FastMatcher()
+    matcher.add(matcher.prepare(sweep(panorama(0))))
+    other = sweep(panorama(0, rows=160))
+    with pytest.raises(LocalizerError):
+        matcher.match(matcher.prepare(other))
+
+
+def test_bad_config_is_refused() -> None:
+    with pytest.raises(LocalizerError):
+        FastConfig(fine_downsample=0)
+    with pytest.raises(LocalizerError):
+        FastConfig(coarse_dy_px=-1)
+
+
+def test_prepare_is_deterministic() -> None:
+    s = sweep(panorama(3))
+    one, two = prepare(s, FastConfig()), prepare(s, FastConfig())
+    assert np.array_equal(one.fine.spectrum, two.fine.spectrum)
+    assert np.array_equal(one.image_rows, two.image_rows)
+
+
+def test_pairwise_matches_cover_every_unordered_pair_in_order() -> None:
+    sets = [sweep(panorama(s)) for s in range(4)]
+    got = pairwise_matches(sets)
+    assert list(got) == [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+    assert all(m.refined for m in got.values())
