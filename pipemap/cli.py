@@ -1,0 +1,49 @@
+"""The ``pipemap`` command: parse, configure logging, run one command, one exit path.
+
+Library code raises :class:`pipemap.errors.PipemapError` for bad input; here alone
+it is caught, printed as one line naming what is wrong, and turned into exit status
+2. Any other exception is a bug and keeps its traceback. Commands import their heavy
+dependencies lazily so that ``pipemap --help`` is instant.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from collections.abc import Sequence
+
+from pipemap.errors import PipemapError
+from pipemap.parser import build_parser
+
+__all__ = ["main"]
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(
+        level=logging.DEBUG if args.verbose else logging.WARNING,
+        format="pipemap: %(levelname)s: %(message)s",
+        stream=sys.stderr,
+    )
+    if args.command in ("match", "map"):
+        from pipemap import folder_commands
+
+        runner = folder_commands.run_match if args.command == "match" else folder_commands.run_map
+        return runner(args, sys.stdout)
+    raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``pipemap`` console script; returns the exit status."""
+    try:
+        return _run(argv)
+    except PipemapError as exc:
+        print(f"pipemap: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("pipemap: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

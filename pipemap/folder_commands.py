@@ -1,0 +1,110 @@
+"""``pipemap match`` and ``pipemap map``: the localizer on image-set folders.
+
+Each command loads (validating every input before any work), calls the pure
+localizer and prints; nothing here decides anything the localizer does not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any, TextIO
+
+from localizer import (
+    FastConfig,
+    ImageSet,
+    Localizer,
+    LocalizerConfig,
+    SetMatch,
+    dumps_document,
+    map_document,
+    pairwise_matches,
+    reference_match,
+)
+from pipemap.folders import load_image_sets
+
+__all__ = ["match_document", "run_map", "run_match"]
+
+
+def _fast_config(args: argparse.Namespace) -> FastConfig:
+    if args.downsample is None:
+        return FastConfig()
+    return FastConfig(fine_downsample=args.downsample)
+
+
+def _load(args: argparse.Namespace) -> list[ImageSet]:
+    return load_image_sets(args.dirs, args.fov_deg, args.keep_top)
+
+
+def match_document(
+    names: list[str], matches: dict[tuple[int, int], SetMatch], threshold: float
+) -> dict[str, Any]:
+    """The JSON document of ``pipemap match``: every pair, in argument order."""
+    return {
+        "threshold": threshold,
+        "pairs": [
+            {
+                "a": names[i],
+                "b": names[j],
+                "similarity": round(m.similarity, 6),
+                "image_shift": m.image_shift,
+                "pixel_shift": round(m.pixel_shift, 6),
+                "rotation_rad": round(m.rotation_rad, 6),
+                "rotation_pinhole_rad": round(m.rotation_pinhole_rad, 6),
+                "same": m.similarity >= threshold,
+            }
+            for (i, j), m in sorted(matches.items())
+        ],
+    }
+
+
+def run_match(args: argparse.Namespace, out: TextIO) -> int:
+    """Load the folders, match every pair, print a table or JSON."""
+    sets = _load(args)
+    if args.reference:
+        matches = {
+            (i, j): reference_match(sets[i], sets[j])
+            for i in range(len(sets))
+            for j in range(i + 1, len(sets))
+        }
+    else:
+        matches = pairwise_matches(sets, _fast_config(args))
+    doc = match_document(list(args.dirs), matches, args.threshold)
+    if args.json:
+        out.write(json.dumps(doc, indent=2) + "\n")
+        return 0
+    width = max([len(d) for d in args.dirs] + [1])
+    out.write(
+        f"{'a':<{width}}  {'b':<{width}}  similarity  image_shift  pixel_shift"
+        "  rotation_rad  same\n"
+    )
+    for pair in doc["pairs"]:
+        out.write(
+            f"{pair['a']:<{width}}  {pair['b']:<{width}}  {pair['similarity']:10.3f}"
+            f"  {pair['image_shift']:11d}  {pair['pixel_shift']:11.1f}"
+            f"  {pair['rotation_rad']:12.3f}  {'yes' if pair['same'] else 'no'}\n"
+        )
+    out.write(f"threshold {args.threshold}; {len(doc['pairs'])} pairs\n")
+    return 0
+
+
+def run_map(args: argparse.Namespace, out: TextIO) -> int:
+    """Load the folders as a visit sequence, localize each, print the map."""
+    sets = _load(args)
+    localizer = Localizer(LocalizerConfig(threshold=args.threshold, fast=_fast_config(args)))
+    visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets)]
+    doc = map_document(localizer.map, visits)
+    if args.json:
+        out.write(dumps_document(doc))
+        return 0
+    width = max([len(d) for d in args.dirs] + [3])
+    out.write(f"{'set':<{width}}  node  known  similarity  margin\n")
+    for v in doc["visits"]:
+        margin = "-" if v["margin"] is None else f"{v['margin']:.3f}"
+        out.write(
+            f"{v['set']:<{width}}  {v['node']:4d}  {'yes' if v['known'] else 'no ':>5}"
+            f"  {v['similarity']:10.3f}  {margin:>6}\n"
+        )
+    edges = ", ".join(f"{e['u']}-{e['v']} ({e['label']})" for e in doc["edges"])
+    out.write(f"{len(doc['nodes'])} nodes; edges: {edges or 'none'}\n")
+    return 0

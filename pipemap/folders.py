@@ -1,0 +1,123 @@
+"""Image-set folders in the paper's layout: ``camera_image1..N`` plus an optional ``info.txt``.
+
+Reading files is the application's job, not the localizer's: this module turns a
+folder into a :class:`localizer.ImageSet` and names the offending path in every
+error it raises.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from localizer import ImageSet
+from pipemap.errors import InputError
+
+__all__ = ["IMAGE_SUFFIXES", "load_image_set", "load_image_sets", "read_info"]
+
+#: Image formats accepted in a set folder (those OpenCV decodes everywhere).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
+_NAME = re.compile(r"^camera_image(\d+)$")
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_END = b"IEND\xaeB`\x82"  # type and CRC of the IEND chunk, a PNG's last
+
+
+def _image_files(folder: Path) -> list[Path]:
+    found: dict[int, Path] = {}
+    for path in folder.iterdir():
+        match = _NAME.match(path.stem)
+        if match is None or path.suffix.lower() not in IMAGE_SUFFIXES or not path.is_file():
+            continue
+        index = int(match.group(1))
+        if index in found:
+            raise InputError(f"{folder}: two files for image {index}: {found[index].name}, {path.name}")
+        found[index] = path
+    if not found:
+        raise InputError(f"{folder}: no camera_image1..N image files")
+    expected = list(range(1, len(found) + 1))
+    if sorted(found) != expected:
+        missing = sorted(set(expected) - set(found))
+        raise InputError(f"{folder}: images are not numbered 1..{len(found)} (missing {missing})")
+    return [found[i] for i in expected]
+
+
+def _read_gray(path: Path) -> np.ndarray:
+    data = path.read_bytes()
+    # libjpeg decodes a truncated JPEG with only a warning: demand the end marker.
+    if path.suffix.lower() in (".jpg", ".jpeg") and not data.rstrip(b"\0").endswith(b"\xff\xd9"):
+        raise InputError(f"{path}: truncated or corrupt JPEG image")
+    # libpng reports a truncated PNG on stderr itself: demand the final IEND chunk.
+    if data.startswith(_PNG_SIGNATURE) and _PNG_END not in data:
+        raise InputError(f"{path}: truncated or corrupt PNG image")
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
+    if image is None or image.size == 0:
+        raise InputError(f"{path}: not a readable image")
+    return image
+
+
+def load_image_set(
+    folder: str | Path, fov_rad: float | None = None, keep_top_fraction: float | None = None
+) -> ImageSet:
+    """Read the grayscale images of one set folder, in sweep order."""
+    path = Path(folder)
+    if not path.exists():
+        raise InputError(f"{path}: no such folder")
+    if not path.is_dir():
+        raise InputError(f"{path}: not a folder")
+    images = []
+    for file in _image_files(path):
+        try:
+            image = _read_gray(file)
+        except OSError as exc:
+            raise InputError(f"{file}: cannot read ({exc.strerror})") from exc
+        if images and image.shape != images[0].shape:
+            raise InputError(
+                f"{file}: image is {image.shape[1]}x{image.shape[0]}, the set's first is "
+                f"{images[0].shape[1]}x{images[0].shape[0]}"
+            )
+        images.append(image)
+    kwargs: dict[str, float] = {}
+    if fov_rad is not None:
+        kwargs["fov_rad"] = fov_rad
+    if keep_top_fraction is not None:
+        kwargs["keep_top_fraction"] = keep_top_fraction
+    return ImageSet(np.stack(images), **kwargs)
+
+
+def load_image_sets(
+    folders: Sequence[str | Path],
+    fov_rad: float | None = None,
+    keep_top_fraction: float | None = None,
+) -> list[ImageSet]:
+    """Read several set folders; they must agree in image count and size."""
+    sets: list[ImageSet] = []
+    for folder in folders:
+        image_set = load_image_set(folder, fov_rad, keep_top_fraction)
+        if sets and image_set.images.shape != sets[0].images.shape:
+            first, this = sets[0], image_set
+            raise InputError(
+                f"{folder}: {this.count} images of {this.width}x{this.height}, but "
+                f"{folders[0]} has {first.count} of {first.width}x{first.height}"
+            )
+        sets.append(image_set)
+    return sets
+
+
+def read_info(folder: str | Path) -> dict[str, str]:
+    """The ``key: value`` lines of a set's ``info.txt`` ({} if it has none).
+
+    Used for ground truth by tests and tools; the localizer never sees it.
+    """
+    path = Path(folder) / "info.txt"
+    if not path.is_file():
+        return {}
+    info: dict[str, str] = {}
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        key, sep, value = line.partition(":")
+        if sep and value.strip():
+            info[key.strip()] = value.strip()
+    return info

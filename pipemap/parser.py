@@ -1,0 +1,114 @@
+"""The ``pipemap`` argument parser: argparse only, no work, no heavy imports."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+from typing import Any, NoReturn
+
+from pipemap import __version__
+
+__all__ = ["build_parser"]
+
+
+class _OneLineParser(argparse.ArgumentParser):
+    """Reports a bad command line as one line and exit status 2.
+
+    Subcommand parsers too say ``pipemap: error:`` (not ``pipemap match: error:``):
+    one prefix for every error the command reports, whichever layer found it.
+    """
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"pipemap: error: {message}\n")
+
+
+def _checked(
+    convert: Callable[[str], float], valid: Callable[[float], bool], rule: str
+) -> Callable[[str], Any]:
+    """An argparse type: ``convert`` the text, then demand ``valid``, else say ``rule``."""
+
+    def parse(text: str) -> Any:
+        try:
+            value = convert(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not valid(value):
+            raise argparse.ArgumentTypeError(f"{rule}, got {text}")
+        return value
+
+    return parse
+
+
+_threshold = _checked(
+    float, lambda v: math.isfinite(v) and -1.0 <= v <= 1.0, "threshold must be in [-1, 1]"
+)
+_positive_int = _checked(int, lambda v: v >= 1, "must be at least 1")
+_fraction = _checked(float, lambda v: 0.0 < v <= 1.0, "must be in (0, 1]")
+_fov_deg = _checked(float, lambda v: 0.0 < v < 360.0, "field of view must be in (0, 360) degrees")
+
+
+def _degrees(text: str) -> float:
+    return math.radians(_fov_deg(text))
+
+
+def _add_matching_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("dirs", nargs="+", metavar="DIR", help="image-set folders (camera_image1..N)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--threshold", type=_threshold, default=0.36, help="known/new threshold (default 0.36)"
+    )
+    p.add_argument(
+        "--fov-deg", type=_degrees, default=None, help="horizontal field of view (default 80)"
+    )
+    p.add_argument(
+        "--keep-top",
+        type=_fraction,
+        default=None,
+        help="fraction of each image kept from the top (default 0.5)",
+    )
+    p.add_argument(
+        "--downsample",
+        type=_positive_int,
+        default=None,
+        help="fast path: decimation factor of the accurate stage (default 4)",
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full ``pipemap`` parser with one subparser per command."""
+    parser = _OneLineParser(
+        prog="pipemap",
+        description="Topological localization and mapping of robots in buried pipe networks.",
+    )
+    parser.add_argument("--version", action="version", version=f"pipemap {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_OneLineParser)
+    sub.required = True
+
+    p_match = sub.add_parser(
+        "match",
+        help="similarity and rotation of every pair of image sets",
+        description="Compare every unordered pair of image sets, in argument order "
+        "(the paper's Algorithm 2).",
+    )
+    _add_matching_options(p_match)
+    p_match.add_argument(
+        "--reference",
+        action="store_true",
+        help="use the slow full-resolution reference instead of the fast path",
+    )
+
+    p_map = sub.add_parser(
+        "map",
+        help="build the topological map of a sequence of junction visits",
+        description="Treat the folders as junction visits in order: decide known or new "
+        "for each and build the topological map (Algorithms 1 and 4).",
+    )
+    _add_matching_options(p_map)
+    return parser
+
+
+if __name__ == "__main__":  # pragma: no cover - convenience for `python -m`
+    build_parser().print_help(sys.stdout)

@@ -1,0 +1,304 @@
+"""The layering of STYLE.md, checked on the source with ``ast``.
+
+The data travels one way, ``sim -> recorder -> log -> replay -> localizer -> map``,
+and only the ``pipemap`` application shell may depend on everything. Every ``.py``
+file of the five top-level packages is parsed; every import it makes (at module
+level or inside a function, absolute or relative, and ``importlib.import_module`` /
+``__import__`` of a literal name) is checked against the arrows allowed below.
+The localizer is held to more: only the standard library, numpy, scipy, OpenCV and
+networkx, and nothing that touches files, the wall clock or the logging set-up.
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("localizer", "sim", "recorder", "replay", "pipemap")
+
+#: Project modules each package may import (a name and everything below it).
+#: ``pipemap.errors`` is the one error root every layer shares.
+ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
+    "localizer": ("localizer", "pipemap.errors"),
+    "sim": ("sim", "pipemap.errors"),
+    "recorder": ("recorder", "sim", "localizer", "pipemap.errors"),
+    "replay": ("replay", "recorder", "localizer", "pipemap.errors"),
+    "pipemap": PACKAGES,
+}
+
+#: Files every layer loads through ``pipemap.errors`` (importing it runs
+#: ``pipemap/__init__.py`` too): they must not pull the application shell, or any
+#: other layer, in behind the layers' backs. Standard library only.
+SHARED_FILES = ("pipemap/__init__.py", "pipemap/errors.py")
+
+#: Third-party packages the localizer may use besides the standard library.
+LOCALIZER_THIRD_PARTY = ("numpy", "scipy", "cv2", "networkx")
+#: Standard-library modules the localizer must not use: files, wall clock.
+LOCALIZER_FORBIDDEN_STDLIB = ("os", "pathlib", "time", "datetime")
+#: Calls that read or write files, by module: never in the localizer.
+FILE_CALLS = {
+    "cv2": {"imread", "imreadmulti", "imwrite", "imwritemulti", "VideoCapture", "VideoWriter"},
+    "numpy": {
+        "load", "save", "savez", "savez_compressed", "loadtxt", "savetxt", "genfromtxt",
+        "fromfile", "memmap",
+    },
+    "io": {"open"},
+    "builtins": {"open"},
+    "codecs": {"open"},
+}
+
+#: Third-party packages the simulator must not know of (STYLE: no MCAP).
+SIM_FORBIDDEN_THIRD_PARTY = ("mcap", "mcap_protobuf", "rerun")
+
+
+@dataclass(frozen=True)
+class Import:
+    """One imported name: the dotted target and the line that imports it.
+
+    ``from a.b import c`` gives ``a.b.c`` (``c`` may be a module or an attribute;
+    either way the arrow points into ``a.b``); ``import a.b`` gives ``a.b``.
+    """
+
+    target: str
+    lineno: int
+
+    @property
+    def top(self) -> str:
+        """The top-level package or module imported."""
+        return self.target.split(".")[0]
+
+
+def _package_of(relpath: str) -> list[str]:
+    """The dotted package a file's relative imports start from, as parts."""
+    # "." is the file's folder, for a package's __init__.py as for its modules.
+    return relpath.split("/")[:-1]
+
+
+def imports_of(tree: ast.AST, relpath: str) -> list[Import]:
+    """Every import in ``tree`` (anywhere in it), relative ones made absolute."""
+    package = _package_of(relpath)
+    found: list[Import] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [Import(alias.name, node.lineno) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level == 0:
+                base = node.module or ""
+            else:
+                up = node.level - 1
+                if up >= len(package):
+                    # Above the top-level package: no layer may reach out that way.
+                    base = "<beyond top level>"
+                else:
+                    parts = package[: len(package) - up]
+                    base = ".".join(parts + [node.module] if node.module else parts)
+            found += [
+                Import(base if alias.name == "*" else f"{base}.{alias.name}", node.lineno)
+                for alias in node.names
+            ]
+        elif isinstance(node, ast.Call) and node.args:
+            first = node.args[0]
+            func = node.func
+            dynamic = (isinstance(func, ast.Name) and func.id == "__import__") or (
+                isinstance(func, ast.Attribute) and func.attr == "import_module"
+            )
+            if dynamic and isinstance(first, ast.Constant) and isinstance(first.value, str):
+                found.append(Import(first.value, node.lineno))
+    return found
+
+
+def _within(target: str, allowed: tuple[str, ...]) -> bool:
+    return any(target == a or target.startswith(a + ".") for a in allowed)
+
+
+def _module_aliases(tree: ast.AST) -> dict[str, str]:
+    """Local names bound to a module by ``import x`` / ``import x as y``."""
+    aliases: dict[str, str] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.asname:
+                    aliases[alias.asname] = alias.name
+                else:
+                    top = alias.name.split(".")[0]
+                    aliases[top] = top
+    return aliases
+
+
+def _localizer_calls(tree: ast.AST, relpath: str) -> list[str]:
+    """File, clock and logging set-up calls that the pure core must not make."""
+    aliases = _module_aliases(tree)
+    problems = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func = node.func
+            if isinstance(func, ast.Name) and func.id == "open":
+                problems.append(f"{relpath}:{node.lineno}: calls the builtin open()")
+            elif isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name):
+                module = aliases.get(func.value.id, "")
+                if func.attr in FILE_CALLS.get(module, ()):
+                    problems.append(
+                        f"{relpath}:{node.lineno}: calls {module}.{func.attr}() (file access)"
+                    )
+        if isinstance(node, ast.Attribute) and node.attr == "basicConfig":
+            problems.append(f"{relpath}:{node.lineno}: uses logging.basicConfig (logging set-up)")
+    return problems
+
+
+def violations(source: str, relpath: str) -> list[str]:
+    """Every arrow in ``source`` (the file ``relpath``, e.g. ``"sim/world.py"``) that
+    runs the wrong way, each as ``"file:line: message"``; ``[]`` if there is none."""
+    tree = ast.parse(source, filename=relpath)
+    package = relpath.split("/")[0]
+    problems: list[str] = []
+    for imp in imports_of(tree, relpath):
+        where = f"{relpath}:{imp.lineno}: imports {imp.target!r}"
+        if imp.target.startswith("<"):
+            problems.append(f"{where}: a relative import above the top-level package")
+        elif relpath in SHARED_FILES and imp.top not in sys.stdlib_module_names:
+            problems.append(f"{where}: {relpath} is loaded by every layer; stdlib only")
+        elif imp.top in PACKAGES and not _within(imp.target, ALLOWED_INTERNAL[package]):
+            allowed = ", ".join(ALLOWED_INTERNAL[package])
+            problems.append(f"{where}: {package} may import only {allowed} of the project")
+        elif package == "localizer":
+            if imp.top in LOCALIZER_FORBIDDEN_STDLIB:
+                problems.append(f"{where}: the localizer touches no files and no clock")
+            elif imp.target == "logging.basicConfig":
+                problems.append(f"{where}: only the CLI configures logging")
+            elif not (
+                imp.top in PACKAGES
+                or imp.top in sys.stdlib_module_names
+                or imp.top in LOCALIZER_THIRD_PARTY
+            ):
+                allowed = ", ".join(LOCALIZER_THIRD_PARTY)
+                problems.append(f"{where}: the localizer may use only the stdlib and {allowed}")
+        elif package == "sim" and imp.top in SIM_FORBIDDEN_THIRD_PARTY:
+            problems.append(f"{where}: the simulator knows nothing of logs or viewers")
+    if package == "localizer":
+        problems += _localizer_calls(tree, relpath)
+    return problems
+
+
+def source_files() -> list[str]:
+    """Every ``.py`` file of the five packages, relative to the repository root."""
+    files = []
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            if "__pycache__" not in path.parts:
+                files.append(path.relative_to(ROOT).as_posix())
+    return files
+
+
+# ---------------------------------------------------------------- the project itself
+
+
+def test_every_package_is_walked() -> None:
+    files = source_files()
+    for package in PACKAGES:
+        assert f"{package}/__init__.py" in files, f"{package} not found under {ROOT}"
+    # The walk reaches the modules that make the arrows, not only the __init__ files.
+    assert "localizer/fastmatch.py" in files
+    assert "pipemap/cli.py" in files
+
+
+def test_the_walker_sees_real_imports() -> None:
+    """Guards against a checker that passes because it collects nothing."""
+    path = "pipemap/folder_commands.py"
+    targets = {imp.target for imp in imports_of(ast.parse((ROOT / path).read_text()), path)}
+    assert "localizer.ImageSet" in targets
+    assert "pipemap.folders.load_image_sets" in targets
+
+
+@pytest.mark.parametrize("relpath", source_files())
+def test_imports_follow_the_layering(relpath: str) -> None:
+    source = (ROOT / relpath).read_text(encoding="utf-8")
+    problems = violations(source, relpath)
+    assert not problems, "imports that run the wrong way:\n" + "\n".join(problems)
+
+
+# ---------------------------------------------------------------- the checker
+
+
+BAD_SOURCES = [
+    pytest.param("localizer/x.py", "import pybullet\n", "'pybullet'", id="localizer-pybullet"),
+    pytest.param("localizer/x.py", "from mcap.reader import make_reader\n", "'mcap.reader",
+                 id="localizer-mcap"),
+    pytest.param("localizer/x.py", "import rerun as rr\n", "'rerun'", id="localizer-rerun"),
+    pytest.param("localizer/x.py", "def load():\n    from replay import reader\n",
+                 "'replay.reader'", id="localizer-replay-inside-function"),
+    pytest.param("localizer/x.py", "from pipemap.cli import main\n", "'pipemap.cli.main'",
+                 id="localizer-cli"),
+    pytest.param("localizer/x.py", "import pipemap\n", "'pipemap'", id="localizer-pipemap"),
+    pytest.param("localizer/x.py", "from pipemap import __version__\n",
+                 "'pipemap.__version__'", id="localizer-pipemap-attr"),
+    pytest.param("localizer/x.py", "from pathlib import Path\n", "'pathlib.Path'",
+                 id="localizer-pathlib"),
+    pytest.param("localizer/x.py", "import os.path\n", "'os.path'", id="localizer-os"),
+    pytest.param("localizer/x.py", "import time\n", "'time'", id="localizer-time"),
+    pytest.param("localizer/x.py", "from datetime import datetime\n", "'datetime.datetime'",
+                 id="localizer-datetime"),
+    pytest.param("localizer/x.py", "from logging import basicConfig\n",
+                 "'logging.basicConfig'", id="localizer-from-logging-basicconfig"),
+    pytest.param("localizer/x.py", "import logging\nlogging.basicConfig(level=10)\n",
+                 "logging.basicConfig", id="localizer-logging-basicconfig"),
+    pytest.param("localizer/x.py", "def f(p):\n    with open(p) as fh:\n        return fh\n",
+                 "open()", id="localizer-open"),
+    pytest.param("localizer/x.py", "import cv2 as cv\nim = cv.imread('a.png')\n",
+                 "cv2.imread()", id="localizer-imread"),
+    pytest.param("localizer/x.py", "import importlib\nm = importlib.import_module('pybullet')\n",
+                 "'pybullet'", id="localizer-dynamic-import"),
+    pytest.param("localizer/sub/x.py", "from ...sim import world\n", "beyond top level",
+                 id="localizer-relative-escape"),
+    pytest.param("sim/x.py", "from localizer import ImageSet\n", "'localizer.ImageSet'",
+                 id="sim-localizer"),
+    pytest.param("sim/x.py", "import recorder\n", "'recorder'", id="sim-recorder"),
+    pytest.param("sim/x.py", "from mcap.writer import Writer\n", "'mcap.writer.Writer'",
+                 id="sim-mcap"),
+    pytest.param("recorder/x.py", "from replay.score import score\n", "'replay.score.score'",
+                 id="recorder-replay"),
+    pytest.param("recorder/x.py", "from pipemap.folders import load_image_set\n",
+                 "'pipemap.folders.load_image_set'", id="recorder-pipemap-folders"),
+    pytest.param("replay/x.py", "import sim.world\n", "'sim.world'", id="replay-sim"),
+    pytest.param("pipemap/errors.py", "import numpy\n", "'numpy'", id="errors-numpy"),
+    pytest.param("pipemap/__init__.py", "from pipemap.cli import main\n", "'pipemap.cli.main'",
+                 id="pipemap-init-cli"),
+]
+
+
+@pytest.mark.parametrize(("relpath", "source", "named"), BAD_SOURCES)
+def test_checker_catches_forbidden_import(relpath: str, source: str, named: str) -> None:
+    problems = violations(source, relpath)
+    assert len(problems) == 1, problems
+    assert problems[0].startswith(f"{relpath}:"), problems[0]  # names the file and line
+    assert named in problems[0], problems[0]  # names the import
+
+
+GOOD_SOURCES = [
+    pytest.param("localizer/x.py",
+                 "from __future__ import annotations\nimport math\nimport numpy as np\n"
+                 "from scipy.signal import fftconvolve\nimport cv2\nimport networkx as nx\n"
+                 "from pipemap.errors import LocalizerError\nfrom pipemap import errors\n"
+                 "import logging\nlog = logging.getLogger(__name__)\n"
+                 "from .similarity import SetMatch\nfrom localizer.imageset import ImageSet\n"
+                 "small = cv2.resize(np.zeros((4, 4)), (2, 2))\n",
+                 id="localizer"),
+    pytest.param("recorder/x.py",
+                 "import mcap\nfrom sim import world\nfrom localizer import Localizer\n"
+                 "from pipemap.errors import PipemapError\n", id="recorder"),
+    pytest.param("replay/x.py",
+                 "from recorder.topics import TOPICS\nimport localizer\n"
+                 "def f():\n    import rerun\n", id="replay"),
+    pytest.param("pipemap/cli.py",
+                 "from replay import score\nfrom recorder import Recorder\nimport sim\n",
+                 id="pipemap-shell"),
+]
+
+
+@pytest.mark.parametrize(("relpath", "source"), GOOD_SOURCES)
+def test_checker_allows_the_right_arrows(relpath: str, source: str) -> None:
+    assert violations(source, relpath) == []
