@@ -17,7 +17,7 @@ from localizer.localizer import (
     ProbeOutcome,
     ProbeRequest,
     ProbeSource,
-    decide,
+    best_candidate,
     probe_plan,
 )
 from localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
@@ -55,7 +55,7 @@ __all__ = [
     "SetMatch",
     "TopoMap",
     "best_offset",
-    "decide",
+    "best_candidate",
     "decision_record",
     "dumps_document",
     "map_document",

@@ -114,7 +114,12 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         count=n,
         width_px=image_set.width,
         fov_rad=image_set.fov_rad,
-        shape_key=(*image_set.images.shape, *(getattr(config, f) for f in _SHAPE_FIELDS)),
+        shape_key=(
+            *image_set.images.shape,
+            image_set.fov_rad,
+            image_set.keep_top_fraction,
+            *(getattr(config, f) for f in _SHAPE_FIELDS),
+        ),
         template_rows=np.ascontiguousarray(np.conj(spectra).transpose(2, 0, 1), np.complex64),
         template_norm=np.sqrt(np.sum(zero_mean**2, axis=(1, 2))),
         image_rows=np.ascontiguousarray(spectra.transpose(2, 1, 0), np.complex64),
@@ -253,8 +258,8 @@ class FastMatcher:
     def _check(self, prepared: PreparedSet) -> None:
         if self._sets and prepared.shape_key != self._sets[0].shape_key:
             raise LocalizerError(
-                f"image set {prepared.shape_key[:3]} (images, height, width) does not "
-                f"match the database's {self._sets[0].shape_key[:3]}"
+                f"image set {prepared.shape_key[:5]} (images, height, width, fov, kept "
+                f"fraction) does not match the database's {self._sets[0].shape_key[:5]}"
             )
 
     def add(self, prepared: PreparedSet) -> int:

@@ -34,7 +34,7 @@ __all__ = [
     "ProbeOutcome",
     "ProbeRequest",
     "ProbeSource",
-    "decide",
+    "best_candidate",
     "probe_plan",
 ]
 
@@ -107,7 +107,8 @@ class Decision:
     ``candidate`` is the best-matching known node (``None`` on the first visit) and
     ``match`` its match, from the probe sweep if a probe improved it. ``similarity``
     is that match's similarity (0.0 with no candidate), ``margin`` the best minus
-    the second-best similarity (``None`` with fewer than two known junctions).
+    the second-best similarity among the refined candidates (``None`` with fewer
+    than two).
     ``missing_probes`` counts requested probes the caller could not supply.
     """
 
@@ -125,20 +126,21 @@ class Decision:
         return sum(1 for p in self.probes if p.similarity is None)
 
 
-def decide(matches: list[SetMatch], threshold: float) -> tuple[int | None, float, float | None]:
-    """Algorithm 1: the best candidate, its similarity and the margin to the second.
+def best_candidate(matches: list[SetMatch]) -> tuple[int | None, float, float | None]:
+    """Algorithm 1's choice: the best candidate, its similarity, the margin to the second.
 
-    Ties go to the earliest known junction. The visit is known when the returned
-    similarity is at least ``threshold``.
+    Only refined matches compete when there are any: a screening score is biased
+    (it ranks, it does not measure) and must not decide. Ties go to the earliest
+    known junction. The visit is known when the similarity reaches the threshold.
     """
-    if not matches:
+    pool = [i for i, m in enumerate(matches) if m.refined] or list(range(len(matches)))
+    if not pool:
         return None, 0.0, None
-    sims = [m.similarity for m in matches]
-    best = max(range(len(sims)), key=lambda i: (sims[i], -i))
+    best = max(pool, key=lambda i: (matches[i].similarity, -i))
     margin = None
-    if len(sims) > 1:
-        margin = sims[best] - max(s for i, s in enumerate(sims) if i != best)
-    return best, sims[best], margin
+    if len(pool) > 1:
+        margin = matches[best].similarity - max(matches[i].similarity for i in pool if i != best)
+    return best, matches[best].similarity, margin
 
 
 def probe_plan(estimated_rotation_rad: float, distance_m: float) -> tuple[ProbeRequest, ...]:
@@ -175,7 +177,7 @@ class Localizer:
 
     def _best(self, prepared: PreparedSet) -> tuple[list[SetMatch], int | None, float, float | None]:
         matches = self._matcher.match(prepared)
-        best, sim, margin = decide(matches, self.config.threshold)
+        best, sim, margin = best_candidate(matches)
         return matches, best, sim, margin
 
     def localize(self, query: ImageSet, probes: ProbeSource | None = None) -> Decision:

@@ -1,0 +1,368 @@
+"""Tests of :mod:`localizer.topomap` (Algorithm 4) and the map document of
+:mod:`localizer.mapjson`."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+
+import pytest
+
+from localizer.localizer import Decision, ProbeKind, ProbeOutcome, ProbeRequest
+from localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
+from localizer.similarity import SetMatch
+from localizer.topomap import MapEdge, TopoMap
+
+#: A tree explored depth first: S A B A C D C E C F C A S.
+TREE_VISITS = (0, 1, 2, 1, 3, 4, 3, 5, 3, 6, 3, 1, 0)
+TREE_EDGES = [
+    MapEdge(0, 1, 1),  # S-A
+    MapEdge(1, 2, 2),  # A-B
+    MapEdge(1, 3, 3),  # A-C
+    MapEdge(3, 4, 4),  # C-D
+    MapEdge(3, 5, 5),  # C-E
+    MapEdge(3, 6, 6),  # C-F
+]
+
+
+def _built(visits: Sequence[int]) -> TopoMap:
+    m = TopoMap()
+    for node in visits:
+        m.visit(node)
+    return m
+
+
+# --- TopoMap.visit ------------------------------------------------------------------
+
+
+def test_empty_map() -> None:
+    m = TopoMap()
+    assert m.node_count == 0
+    assert m.visits == ()
+    assert m.edges() == []
+    assert m.to_dict() == {"nodes": [], "edges": []}
+
+
+def test_first_visit_adds_node_zero_and_no_edge() -> None:
+    m = TopoMap()
+    assert m.visit(0) is None
+    assert m.node_count == 1
+    assert m.edges() == []
+    assert m.visits == (0,)
+
+
+def test_first_visit_must_be_node_zero() -> None:
+    m = TopoMap()
+    with pytest.raises(ValueError):
+        m.visit(1)
+    assert m.node_count == 0
+    assert m.visits == ()
+
+
+def test_nodes_are_numbered_in_first_visit_order() -> None:
+    m = TopoMap()
+    for expected_count, node in enumerate([0, 1, 2, 3], start=1):
+        m.visit(node)
+        assert m.node_count == expected_count
+    assert sorted(m.graph.nodes) == [0, 1, 2, 3]
+
+
+def test_consecutive_visits_add_labelled_edges_in_order() -> None:
+    m = TopoMap()
+    assert m.visit(0) is None
+    assert m.visit(1) == MapEdge(0, 1, 1)
+    assert m.visit(2) == MapEdge(1, 2, 2)
+    assert m.visit(0) == MapEdge(2, 0, 3)  # a known node, but a new edge
+    assert m.node_count == 3
+    assert m.edges() == [MapEdge(0, 1, 1), MapEdge(1, 2, 2), MapEdge(2, 0, 3)]
+
+
+def test_retraversing_an_edge_forward_adds_nothing() -> None:
+    m = _built([0, 1, 2])
+    assert m.visit(1) is None  # 2 -> 1 is edge 1-2 backwards
+    assert m.visit(2) is None  # and forwards again
+    assert m.edges() == [MapEdge(0, 1, 1), MapEdge(1, 2, 2)]
+    assert m.graph.number_of_edges() == 2
+
+
+def test_retraversing_an_edge_backwards_adds_nothing() -> None:
+    m = _built([0, 1])
+    assert m.visit(0) is None
+    assert m.visit(1) is None
+    assert m.visit(0) is None
+    assert m.edges() == [MapEdge(0, 1, 1)]
+    assert m.visits == (0, 1, 0, 1, 0)
+
+
+def test_labels_continue_after_retraversals() -> None:
+    m = _built([0, 1, 0, 1])
+    assert m.visit(2) == MapEdge(1, 2, 2)
+    assert m.visit(0) == MapEdge(2, 0, 3)
+    assert [e.label for e in m.edges()] == [1, 2, 3]
+
+
+@pytest.mark.parametrize(
+    "prefix,bad",
+    [((0,), 2), ((0,), 5), ((0, 1, 2), 4), ((0, 1), -1), ((), 1), ((), -1)],
+)
+def test_node_neither_known_nor_next_raises(prefix: tuple[int, ...], bad: int) -> None:
+    m = _built(prefix)
+    before = (m.node_count, m.visits, m.edges())
+    with pytest.raises(ValueError):
+        m.visit(bad)
+    assert (m.node_count, m.visits, m.edges()) == before  # nothing recorded
+
+
+def test_next_new_node_is_accepted_after_known_revisits() -> None:
+    m = _built([0, 1, 0])
+    assert m.visit(2) == MapEdge(0, 2, 2)
+    assert m.node_count == 3
+
+
+def test_edges_keep_first_traversal_direction() -> None:
+    # Edge 1-2 is first traversed 2 -> 1; edge 0-2 first traversed 0 -> 2.
+    m = _built([0, 1, 0, 2, 1, 2, 0])
+    assert m.edges() == [MapEdge(0, 1, 1), MapEdge(0, 2, 2), MapEdge(2, 1, 3)]
+
+
+def test_edges_are_in_label_order_not_node_order() -> None:
+    m = _built([0, 1, 2, 3, 0, 2])
+    edges = m.edges()
+    assert [e.label for e in edges] == [1, 2, 3, 4, 5]
+    assert [(e.u, e.v) for e in edges] == [(0, 1), (1, 2), (2, 3), (3, 0), (0, 2)]
+
+
+def test_graph_is_a_copy_with_labels() -> None:
+    m = _built([0, 1, 2])
+    g = m.graph
+    assert g.edges[0, 1]["label"] == 1
+    assert g.edges[2, 1]["label"] == 2
+    g.add_edge(0, 2, label=99)
+    g.add_node(7)
+    assert m.node_count == 3
+    assert m.graph.number_of_edges() == 2
+
+
+def test_visits_record_every_visit() -> None:
+    m = _built(TREE_VISITS)
+    assert m.visits == TREE_VISITS
+    assert isinstance(m.visits, tuple)
+
+
+def test_tree_exploration() -> None:
+    m = TopoMap()
+    added = [m.visit(node) for node in TREE_VISITS]
+    assert m.node_count == 7
+    assert m.edges() == TREE_EDGES
+    # New edges appear exactly when the robot first goes down a pipe.
+    assert [e for e in added if e is not None] == TREE_EDGES
+    assert [i for i, e in enumerate(added) if e is not None] == [1, 2, 4, 5, 7, 9]
+    assert m.to_dict() == {
+        "nodes": [{"id": i} for i in range(7)],
+        "edges": [{"u": e.u, "v": e.v, "label": e.label} for e in TREE_EDGES],
+    }
+
+
+# --- to_dict / to_json --------------------------------------------------------------
+
+
+def test_to_dict_structure() -> None:
+    d = _built([0, 1, 2, 1]).to_dict()
+    assert list(d) == ["nodes", "edges"]
+    assert d["nodes"] == [{"id": 0}, {"id": 1}, {"id": 2}]
+    assert d["edges"] == [{"u": 0, "v": 1, "label": 1}, {"u": 1, "v": 2, "label": 2}]
+    for node in d["nodes"]:
+        assert list(node) == ["id"]
+        assert type(node["id"]) is int
+    for edge in d["edges"]:
+        assert list(edge) == ["u", "v", "label"]
+        assert all(type(edge[k]) is int for k in edge)
+
+
+def test_to_json_is_deterministic_and_parses() -> None:
+    a = _built(TREE_VISITS).to_json()
+    b = _built(TREE_VISITS).to_json()
+    assert a.encode() == b.encode()
+    assert a.endswith("\n")
+    assert json.loads(a) == _built(TREE_VISITS).to_dict()
+
+
+def test_to_json_differs_for_different_maps() -> None:
+    assert _built([0, 1, 2]).to_json() != _built([0, 1, 0, 2]).to_json()
+
+
+def test_to_json_of_empty_map() -> None:
+    assert json.loads(TopoMap().to_json()) == {"nodes": [], "edges": []}
+
+
+# --- map document -------------------------------------------------------------------
+
+
+def _decision(
+    node: int,
+    known: bool,
+    similarity: float,
+    margin: float | None,
+    match: SetMatch | None = None,
+    probes: tuple[ProbeOutcome, ...] = (),
+    candidate: int | None = None,
+) -> Decision:
+    return Decision(
+        node=node,
+        known=known,
+        candidate=candidate,
+        similarity=similarity,
+        margin=margin,
+        match=match,
+        probes=probes,
+    )
+
+
+def _document_inputs() -> tuple[TopoMap, list[tuple[str, Decision]]]:
+    m = _built([0, 1, 0])
+    match = SetMatch(
+        similarity=0.912345678,
+        image_shift=3,
+        pixel_shift=-1.23456789,
+        rotation_rad=math.pi - 1e-9,
+        rotation_pinhole_rad=-2.0000004,
+    )
+    visits = [
+        ("set_a", _decision(0, False, 0.0, None)),
+        (
+            "set_b",
+            _decision(
+                1,
+                False,
+                0.1234567891,
+                None,
+                SetMatch(0.1234567891, 0, 0.0, 0.0, 0.0, refined=False),
+                probes=(
+                    ProbeOutcome(ProbeRequest(ProbeKind.ROTATE, yaw_rad=0.5), 0.2000000001, True),
+                ),
+                candidate=0,
+            ),
+        ),
+        (
+            "set_a_again",
+            _decision(
+                0,
+                True,
+                0.912345678,
+                0.7888888888,
+                match,
+                probes=(
+                    ProbeOutcome(ProbeRequest(ProbeKind.FORWARD, forward_m=0.03), None, False),
+                ),
+                candidate=0,
+            ),
+        ),
+    ]
+    return m, visits
+
+
+def test_map_document_structure() -> None:
+    m, visits = _document_inputs()
+    doc = map_document(m, visits)
+    assert list(doc) == ["nodes", "edges", "visits"]
+    assert doc["nodes"] == m.to_dict()["nodes"]
+    assert doc["edges"] == m.to_dict()["edges"]
+    assert [v["set"] for v in doc["visits"]] == ["set_a", "set_b", "set_a_again"]
+    first, second, third = doc["visits"]
+    assert first == {
+        "set": "set_a",
+        "node": 0,
+        "known": False,
+        "similarity": 0.0,
+        "margin": None,
+        "candidate": None,
+        "image_shift": None,
+        "pixel_shift": None,
+        "rotation_rad": None,
+        "rotation_pinhole_rad": None,
+        "probes": [],
+    }
+    assert second["probes"] == [{"kind": "rotate", "similarity": 0.2, "improved": True}]
+    assert third["probes"] == [{"kind": "forward", "similarity": None, "improved": False}]
+    assert third["known"] is True
+    assert third["image_shift"] == 3
+    assert third["candidate"] == 0
+
+
+def test_document_floats_are_rounded_to_six_decimals() -> None:
+    assert FLOAT_DECIMALS == 6
+    m, visits = _document_inputs()
+    third = map_document(m, visits)["visits"][2]
+    assert third["similarity"] == 0.912346
+    assert third["margin"] == 0.788889
+    assert third["pixel_shift"] == -1.234568
+    assert third["rotation_rad"] == round(math.pi, 6)
+    assert third["rotation_pinhole_rad"] == -2.0
+    text = dumps_document(map_document(m, visits))
+    assert "0.912346" in text
+    assert "0.912345678" not in text
+    assert "0.7888888888" not in text
+
+
+def test_decision_record_equals_document_visit() -> None:
+    m, visits = _document_inputs()
+    doc = map_document(m, visits)
+    for (label, decision), record in zip(visits, doc["visits"]):
+        assert decision_record(label, decision) == record
+
+
+def test_dumps_document_is_deterministic() -> None:
+    m1, v1 = _document_inputs()
+    m2, v2 = _document_inputs()
+    t1 = dumps_document(map_document(m1, v1))
+    t2 = dumps_document(map_document(m2, v2))
+    assert t1.encode() == t2.encode()
+    assert t1.endswith("\n")
+    assert json.loads(t1) == map_document(m1, v1)
+    # Two-space indentation, key order as built.
+    assert t1.startswith('{\n  "nodes": [')
+    assert t1.index('"nodes"') < t1.index('"edges"') < t1.index('"visits"')
+
+
+@pytest.mark.parametrize("tiny", [-1e-9, -4.9e-7, -0.0, 1e-12 * -1.0])
+def test_document_never_emits_negative_zero(tiny: float) -> None:
+    match = SetMatch(
+        similarity=tiny,
+        image_shift=0,
+        pixel_shift=tiny,
+        rotation_rad=tiny,
+        rotation_pinhole_rad=tiny,
+    )
+    d = _decision(0, False, tiny, tiny, match, candidate=0)
+    record = decision_record("x", d)
+    for key in ("similarity", "margin", "pixel_shift", "rotation_rad", "rotation_pinhole_rad"):
+        assert record[key] == 0.0
+        assert math.copysign(1.0, record[key]) == 1.0, key
+    text = dumps_document(map_document(_built([0]), [("x", d)]))
+    assert "-0.0" not in text
+    assert "-0" not in text
+
+
+def test_small_negative_values_keep_their_sign_when_not_zero() -> None:
+    d = _decision(0, False, -0.25, -1e-6)
+    record = decision_record("x", d)
+    assert record["similarity"] == -0.25
+    assert record["margin"] == -1e-6
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_dumps_document_rejects_non_finite(bad: float) -> None:
+    d = _decision(0, False, bad, None)
+    doc = map_document(_built([0]), [("x", d)])
+    with pytest.raises(ValueError):
+        dumps_document(doc)
+
+
+def test_dumps_document_rejects_nan_in_margin_and_probes() -> None:
+    with pytest.raises(ValueError):
+        dumps_document(map_document(_built([0]), [("x", _decision(0, False, 0.5, math.nan))]))
+    probe = ProbeOutcome(ProbeRequest(ProbeKind.LEFT, left_m=0.03), math.nan, False)
+    d = _decision(0, False, 0.5, None, probes=(probe,))
+    with pytest.raises(ValueError):
+        dumps_document(map_document(_built([0]), [("x", d)]))
