@@ -7,11 +7,15 @@ Prints, on one core (BLAS and FFT threads pinned to 1 before numpy loads):
    sets (image shift, known/unknown decision, similarity, rotation);
 3. per-decision latency against databases of 1, 10, 100 and 1000 known junctions,
    synthetic ones made from augmented copies of the shared images;
-4. memory kept per known junction.
+4. memory kept per known junction;
+
+5. ``pipemap match`` end to end on 25 sets.
 
 Usage: ``python benchmarks/bench_localizer.py [--sets DIR] [--reference-pairs K]
-[--write-reference FILE]``. The reference over all 55 pairs takes a few minutes;
-``--reference-pairs K`` times it on K pairs and compares agreement on those only.
+[--write-reference FILE]``. Agreement is measured against the stored reference
+values of all 55 pairs (``tests/localizer/data/paper_reference.json``, which a test
+keeps current); the reference is timed on K pairs (default 3). ``--write-reference``
+recomputes and writes all 55 (a few minutes).
 """
 
 from __future__ import annotations
@@ -26,7 +30,9 @@ import itertools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import statistics  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -44,12 +50,14 @@ from localizer import (  # noqa: E402
     FastMatcher,
     ImageSet,
     pairwise_matches,
+    prepare,
     reference_match,
     wrap_angle_rad,
 )
 from pipemap.folders import load_image_set, read_info  # noqa: E402
 
 DEFAULT_SETS = ROOT.parent / "shared" / "paper_imagesets"
+REFERENCE_VALUES = ROOT / "tests" / "localizer" / "data" / "paper_reference.json"
 
 
 def augmented_set(base: list[ImageSet], rng: np.random.Generator) -> ImageSet:
@@ -80,11 +88,39 @@ def time_call(fn, repeat: int) -> float:  # type: ignore[no-untyped-def]
     return statistics.median(times)
 
 
+def _same_junction(a: dict[str, str], b: dict[str, str]) -> bool:
+    return math.hypot(float(a["x"]) - float(b["x"]), float(a["y"]) - float(b["y"])) < 0.15
+
+
+def _agreement(title: str, got: dict, ref: dict, info: dict) -> None:  # type: ignore[type-arg]
+    same = [k for k in ref if _same_junction(info[k[0]], info[k[1]])]
+    other = [k for k in ref if k not in same]
+    decisions = sum(
+        (got[k].similarity >= DEFAULT_THRESHOLD) == (ref[k]["similarity"] >= DEFAULT_THRESHOLD)
+        for k in ref
+    )
+    d_sim = [got[k].similarity - ref[k]["similarity"] for k in ref]
+    d_rot = [abs(wrap_angle_rad(got[k].rotation_rad - ref[k]["rotation_rad"])) for k in same]
+    print(f"\n## Agreement with the reference, {title}")
+    print(f"same decision at {DEFAULT_THRESHOLD}      : {decisions}/{len(ref)}")
+    print(f"similarity difference      : min {min(d_sim):+.4f}  max {max(d_sim):+.4f}")
+    shift_same = sum(got[k].image_shift == ref[k]["image_shift"] for k in same)
+    shift_other = sum(got[k].image_shift == ref[k]["image_shift"] for k in other)
+    print(
+        f"same image shift           : {shift_same}/{len(same)} same-junction pairs, "
+        f"{shift_other}/{len(other)} different-junction pairs (offset is noise there)"
+    )
+    print(f"rotation difference        : max {max(d_rot):.4f} rad over same-junction pairs")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sets", type=Path, default=DEFAULT_SETS)
-    parser.add_argument("--reference-pairs", type=int, default=0, help="0: all pairs")
-    parser.add_argument("--write-reference", type=Path, default=None)
+    parser.add_argument("--reference-pairs", type=int, default=3, help="pairs to time (3)")
+    parser.add_argument("--reference-values", type=Path, default=REFERENCE_VALUES)
+    parser.add_argument(
+        "--write-reference", type=Path, default=None, help="recompute all pairs (minutes)"
+    )
     parser.add_argument("--sizes", default="1,10,100,1000")
     args = parser.parse_args()
 
@@ -93,101 +129,139 @@ def main() -> int:
     info = {n: read_info(args.sets / n) for n in names}
     s0 = sets[names[0]]
     print(f"# {len(names)} image sets of {s0.count} images, {s0.width}x{s0.height} px, one core")
-
     pairs = list(itertools.combinations(names, 2))
-    if args.reference_pairs:
-        pairs = pairs[: args.reference_pairs]
 
-    # 1 + 2: reference vs fast path, pair by pair.
-    ref_times, ref = [], {}
-    for a, b in pairs:
+    # 1: time per pair.
+    timed = pairs[: args.reference_pairs] if not args.write_reference else pairs
+    ref_times, computed = [], {}
+    for a, b in timed:
         start = time.perf_counter()
-        ref[(a, b)] = reference_match(sets[a], sets[b])
+        m = reference_match(sets[a], sets[b])
         ref_times.append(time.perf_counter() - start)
-    config = FastConfig()
-
-    def fast_pair(a: str, b: str) -> object:
-        matcher = FastMatcher(config)
-        matcher.add(matcher.prepare(sets[b]))
-        return matcher.match(matcher.prepare(sets[a]))[0]
-
-    fast_times = [time_call(lambda a=a, b=b: fast_pair(a, b), 3) for a, b in pairs[:10]]
-    fast = pairwise_matches([sets[n] for n in names], config)
-    index = {n: i for i, n in enumerate(names)}
-    t_ref, t_fast = statistics.median(ref_times), statistics.median(fast_times)
-    print("\n## Per pair of image sets (prepare both + match; median)")
-    print(f"reference (full resolution, full search): {t_ref * 1000:9.1f} ms")
-    print(f"fast path (default cascade)             : {t_fast * 1000:9.1f} ms")
-    print(f"speed-up                                : {t_ref / t_fast:9.0f} x")
-
-    same_shift = same_decision = 0
-    d_sim, d_rot, rot_err_fast, rot_err_ref = [], [], [], []
-    for a, b in pairs:
-        r, f = ref[(a, b)], fast[(index[a], index[b])]
-        same_shift += r.image_shift == f.image_shift
-        same_decision += (r.similarity >= DEFAULT_THRESHOLD) == (f.similarity >= DEFAULT_THRESHOLD)
-        d_sim.append(f.similarity - r.similarity)
-        d_rot.append(abs(wrap_angle_rad(f.rotation_rad - r.rotation_rad)))
-        ia, ib = info[a], info[b]
-        if math.hypot(float(ia["x"]) - float(ib["x"]), float(ia["y"]) - float(ib["y"])) < 0.15:
-            truth = float(ib["yaw"]) - float(ia["yaw"])
-            rot_err_fast.append(abs(wrap_angle_rad(f.rotation_rad - truth)))
-            rot_err_ref.append(abs(wrap_angle_rad(r.rotation_rad - truth)))
-    print(f"\n## Agreement with the reference over {len(pairs)} pairs")
-    print(f"same image shift      : {same_shift}/{len(pairs)}")
-    print(f"same decision at {DEFAULT_THRESHOLD}: {same_decision}/{len(pairs)}")
-    print(f"similarity difference : min {min(d_sim):+.4f}  max {max(d_sim):+.4f}")
-    print(f"rotation difference   : max {max(d_rot):.4f} rad")
-    if rot_err_fast:
-        print(
-            f"rotation error vs recorded yaw, {len(rot_err_fast)} same-junction pairs: "
-            f"fast mean {np.mean(rot_err_fast):.4f} max {max(rot_err_fast):.4f} rad; "
-            f"reference mean {np.mean(rot_err_ref):.4f} max {max(rot_err_ref):.4f} rad"
-        )
-    if args.write_reference:
-        doc = {
-            f"{a}|{b}": {
-                "similarity": m.similarity,
-                "image_shift": m.image_shift,
-                "pixel_shift": m.pixel_shift,
-                "rotation_rad": m.rotation_rad,
-            }
-            for (a, b), m in ref.items()
+        computed[(a, b)] = {
+            "similarity": m.similarity,
+            "image_shift": m.image_shift,
+            "pixel_shift": m.pixel_shift,
+            "rotation_rad": m.rotation_rad,
         }
+    if args.write_reference:
+        doc = {f"{a}|{b}": v for (a, b), v in computed.items()}
         args.write_reference.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
         print(f"wrote {args.write_reference}")
+    config = FastConfig()
+    prepared = {n: prepare(sets[n], config) for n in names}
+
+    def match_prepared(a: str, b: str) -> object:
+        matcher = FastMatcher(config)
+        matcher.add(prepared[b])
+        return matcher.match(prepared[a])[0]
+
+    t_ref = statistics.median(ref_times)
+    t_prep = statistics.median(time_call(lambda n=n: prepare(sets[n], config), 3) for n in names)
+    t_match = statistics.median(
+        time_call(lambda a=a, b=b: match_prepared(a, b), 5) for a, b in pairs[:10]
+    )
+    print(f"\n## Per pair of image sets (median; reference timed on {len(timed)} pairs)")
+    print(f"reference, full resolution and search    : {t_ref * 1000:8.1f} ms")
+    print(
+        f"fast path, match two prepared sets       : {t_match * 1000:8.1f} ms "
+        f"({t_ref / t_match:.0f}x)"
+    )
+    print(f"fast path, prepare one set (once per set): {t_prep * 1000:8.1f} ms")
+    print(
+        f"fast path, prepare both and match        : {(2 * t_prep + t_match) * 1000:8.1f} ms "
+        f"({t_ref / (2 * t_prep + t_match):.0f}x)"
+    )
+
+    # 2: agreement with the stored reference values.
+    stored = json.loads(args.reference_values.read_text())
+    ref = {tuple(k.split("|")): v for k, v in stored.items()}
+    index = {n: i for i, n in enumerate(names)}
+    every = pairwise_matches([sets[n] for n in names], config, every_offset=True)
+    _agreement(
+        f"all {len(ref)} pairs, `pipemap match --every-offset`",
+        {k: every[(index[k[0]], index[k[1]])] for k in ref},
+        ref,
+        info,
+    )
+    _agreement(
+        f"all {len(ref)} pairs, `pipemap match` and the localizer (2 best offsets refined)",
+        {k: match_prepared(*k) for k in ref},
+        ref,
+        info,
+    )
+    errors = {"paper": [], "pinhole": []}  # type: ignore[var-annotated]
+    for a, b in pairs:
+        if _same_junction(info[a], info[b]):
+            m = every[(index[a], index[b])]
+            truth = float(info[b]["yaw"]) - float(info[a]["yaw"])
+            errors["paper"].append(abs(wrap_angle_rad(m.rotation_rad - truth)))
+            errors["pinhole"].append(abs(wrap_angle_rad(m.rotation_pinhole_rad - truth)))
+    print(
+        f"\n## Rotation error against the recorded yaw, {len(errors['paper'])} same-junction pairs"
+    )
+    for name, errs in errors.items():
+        print(f"{name:8s}: mean {np.mean(errs):.4f} rad, max {max(errs):.4f} rad")
 
     # 3: per-decision latency against synthetic databases.
     rng = np.random.default_rng(7)
     base = list(sets.values())
-    print("\n## Per decision (screen all known junctions, refine the best; median of 10)")
+    print("\n## Per decision: prepare the query, screen all known junctions, refine the best")
+    print("(median of 10 queries; prepare and match split)")
     for size in (int(s) for s in args.sizes.split(",")):
         matcher = FastMatcher(config)
         for _ in range(size):
             matcher.add(matcher.prepare(augmented_set(base, rng)))
-        queries = [sets[n] for n in names[:10]]
-        times = []
-        for q in queries:
+        preps, matches, totals = [], [], []
+        for q in (sets[n] for n in names[:10]):
             start = time.perf_counter()
-            matcher.match(matcher.prepare(q))
-            times.append(time.perf_counter() - start)
+            pq = matcher.prepare(q)
+            mid = time.perf_counter()
+            matcher.match(pq)
+            end = time.perf_counter()
+            preps.append(mid - start)
+            matches.append(end - mid)
+            totals.append(end - start)
         print(
-            f"{size:5d} known junctions: median {statistics.median(times) * 1000:7.1f} ms, "
-            f"max {max(times) * 1000:7.1f} ms"
+            f"{size:5d} known junctions: {statistics.median(totals) * 1000:7.1f} ms "
+            f"(prepare {statistics.median(preps) * 1000:5.1f}, "
+            f"match {statistics.median(matches) * 1000:6.1f}; max {max(totals) * 1000:6.1f})"
         )
 
-    prepared = FastMatcher(config).prepare(s0)
     kept = sum(
-        getattr(arr, "nbytes", 0)
+        arr.nbytes
         for arr in (
-            prepared.template_rows,
-            prepared.image_rows,
-            prepared.window_norm,
-            prepared.fine.spectrum,
-            prepared.fine.window_norm,
+            prepared[names[0]].template_rows,
+            prepared[names[0]].image_rows,
+            prepared[names[0]].window_norm,
+            prepared[names[0]].fine.spectrum,
+            prepared[names[0]].fine.window_norm,
         )
     )
     print(f"\n## Memory: {kept / 2**20:.2f} MiB kept per known junction")
+
+    # 4: the CLI end to end on 25 sets written to disk (11 shared + 14 augmented).
+    with tempfile.TemporaryDirectory() as tmp:
+        dirs = [str(args.sets / n) for n in names]
+        for i in range(25 - len(dirs)):
+            folder = Path(tmp) / f"aug{i:02d}"
+            folder.mkdir()
+            for j, image in enumerate(augmented_set(base, rng).images):
+                cv2.imwrite(str(folder / f"camera_image{j + 1}.png"), image.astype(np.uint8))
+            dirs.append(str(folder))
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        start = time.perf_counter()
+        subprocess.run(
+            [sys.executable, "-m", "pipemap", "match", "--json", *dirs],
+            check=True,
+            env=env,
+            stdout=subprocess.DEVNULL,
+        )
+        wall = time.perf_counter() - start
+    print(
+        f"\n## `pipemap match` on 25 sets ({len(dirs) * (len(dirs) - 1) // 2} pairs), "
+        f"end to end: {wall:.1f} s"
+    )
     return 0
 
 

@@ -62,15 +62,16 @@ class PreparedSet:
     count: int
     width_px: int
     fov_rad: float
-    shape_key: tuple[int, ...]
+    shape_key: tuple[float, ...]
     #: Screening: conj(rfft) of each zero-mean template row, (F, N, R) complex64.
     template_rows: np.ndarray
-    #: Screening: sqrt(sum T^2) of each template, (N,).
-    template_norm: np.ndarray
+    #: Screening: 1 / sqrt(sum T^2) of each template, (N,).
+    inv_template_norm: np.ndarray
     #: Screening: rfft of each zero-mean searched row, (F, R, N) complex64.
     image_rows: np.ndarray
-    #: Screening: sqrt(local variance sum) of each searched image per (dy, dx), (D, N, Wc).
-    window_norm: np.ndarray
+    #: Screening: 1 / sqrt(local variance sum) of each searched image per (dy, dx),
+    #: (D, N, Wc); 0 where the window is flat.
+    inv_window_norm: np.ndarray
     #: Refinement: spectra and norms of the decimated images.
     fine: FineSpectra
 
@@ -109,7 +110,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     spectra = np.fft.rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
     dy_max = min(config.coarse_dy_px // config.coarse_downsample, rows - 1)
     dys = np.arange(-dy_max, dy_max + 1)
-    norms = _window_norms(zero_mean, dys, _same_shifts(wd)).transpose(1, 0, 2)
+    inv_norms = _inverse(_window_norms(zero_mean, dys, _same_shifts(wd))).transpose(1, 0, 2)
     return PreparedSet(
         count=n,
         width_px=image_set.width,
@@ -121,9 +122,9 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
             *(getattr(config, f) for f in _SHAPE_FIELDS),
         ),
         template_rows=np.ascontiguousarray(np.conj(spectra).transpose(2, 0, 1), np.complex64),
-        template_norm=np.sqrt(np.sum(zero_mean**2, axis=(1, 2))),
+        inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
         image_rows=np.ascontiguousarray(spectra.transpose(2, 1, 0), np.complex64),
-        window_norm=norms,
+        inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
         fine=_fine_spectra(_decimated(cropped, config.fine_downsample), image_set.width),
     )
 
@@ -164,10 +165,11 @@ class FineSpectra:
     length: tuple[int, int]
     #: rfft2 of each zero-mean decimated image, (N, Ly, Fx) complex64.
     spectrum: np.ndarray
-    #: sqrt(sum T^2) of each image, (N,).
-    norm: np.ndarray
-    #: sqrt(local variance sum) over the "same" shift range, (N, R, W) float32.
-    window_norm: np.ndarray
+    #: 1 / sqrt(sum T^2) of each image, (N,).
+    inv_norm: np.ndarray
+    #: 1 / sqrt(local variance sum) over the "same" shift range, (N, R, W) float32;
+    #: 0 where the window is flat.
+    inv_window_norm: np.ndarray
     #: Phase ramp that moves shift (-R/2, -W/2) to index (0, 0) of the correlation.
     ramp: np.ndarray
 
@@ -179,7 +181,24 @@ def _window_norms(zero_mean: np.ndarray, dys: np.ndarray, dxs: np.ndarray) -> np
     for i in range(n):
         sums[0, i], sums[1, i] = cv2.integral2(zero_mean[i], sdepth=cv2.CV_64F, sqdepth=cv2.CV_64F)
     s1, s2 = sums_from_integral(sums, dys, dxs)
-    return np.sqrt(np.maximum(s2 - s1 * s1 / (rows * width), 0.0))
+    norms: np.ndarray = np.sqrt(np.maximum(s2 - s1 * s1 / (rows * width), 0.0))
+    return norms
+
+
+def _inverse(norms: np.ndarray) -> np.ndarray:
+    """1 / norms, with 0 where a norm is rounding noise next to the largest of its image.
+
+    Axis 0 indexes images (a 1-D array is one value per image, compared across all).
+    Flat windows then score NCC 0, as in the reference, instead of dividing by ~0.
+    """
+    if norms.ndim == 1:
+        largest = np.full(norms.shape, norms.max(initial=0.0))
+    else:
+        largest = norms.reshape(len(norms), -1).max(axis=1, initial=0.0)
+        largest = largest.reshape((-1,) + (1,) * (norms.ndim - 1))
+    out: np.ndarray = np.zeros_like(norms)
+    np.divide(1.0, norms, out=out, where=norms > 1e-9 * np.maximum(largest, 1e-300))
+    return out
 
 
 def _fine_spectra(fine: np.ndarray, full_width_px: int) -> FineSpectra:
@@ -187,7 +206,7 @@ def _fine_spectra(fine: np.ndarray, full_width_px: int) -> FineSpectra:
     zero_mean = fine.astype(np.float64) - fine.mean(axis=(1, 2), keepdims=True)
     length = (_fft_length(rows), _fft_length(width))
     spectrum = np.fft.rfft2(zero_mean.astype(np.float32), s=length)
-    norms = _window_norms(zero_mean, _same_shifts(rows), _same_shifts(width)).astype(np.float32)
+    norms = _window_norms(zero_mean, _same_shifts(rows), _same_shifts(width))
     fy = np.fft.fftfreq(length[0])[:, None]
     fx = np.fft.rfftfreq(length[1])[None, :]
     ramp = np.exp(-2j * np.pi * (fy * (rows // 2) + fx * (width // 2))).astype(np.complex64)
@@ -197,8 +216,8 @@ def _fine_spectra(fine: np.ndarray, full_width_px: int) -> FineSpectra:
         full_width_px=full_width_px,
         length=length,
         spectrum=spectrum,
-        norm=np.sqrt(np.sum(zero_mean**2, axis=(1, 2))),
-        window_norm=norms,
+        inv_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
+        inv_window_norm=_inverse(norms).astype(np.float32),
         ramp=ramp,
     )
 
@@ -214,17 +233,15 @@ def _fine_peaks(
     rows, width = known.rows, known.width
     product = np.conj(query.spectrum[pairs[:, 0]]) * known.spectrum[pairs[:, 1]]
     product *= known.ramp
-    corr = np.fft.irfft2(product, s=known.length)[:, :rows, :width]
-    denom = query.norm[pairs[:, 0], None, None] * known.window_norm[pairs[:, 1]]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ncc = np.where(denom > 1e-9 * max(float(denom.max()), 1e-300), corr / denom, 0.0)
-    np.clip(ncc, -1.0, 1.0, out=ncc)
-    flat = ncc.reshape(len(pairs), -1)
-    at = np.argmax(flat, axis=1)
-    best_row = at // width
+    ncc = (
+        np.fft.irfft2(product, s=known.length)[:, :rows, :width]
+        * known.inv_window_norm[pairs[:, 1]]
+    )
+    ncc *= query.inv_norm[pairs[:, 0], None, None].astype(np.float32)
+    best_row = np.argmax(ncc.reshape(len(pairs), -1), axis=1) // width
     row_values = ncc[np.arange(len(pairs)), best_row]  # (P, W): the peak's row
     value, column = _peaks_along_columns(row_values)
-    return value, column - width // 2
+    return np.clip(value, -1.0, 1.0), column - width // 2
 
 
 def _offset_scores(peaks: np.ndarray) -> np.ndarray:
@@ -232,7 +249,8 @@ def _offset_scores(peaks: np.ndarray) -> np.ndarray:
     n = peaks.shape[-1]
     j = np.arange(n)
     cols = (j[None, :] + j[:, None]) % n  # row k holds (j + k) mod N
-    return peaks[..., j[None, :], cols].mean(axis=-1)
+    scores: np.ndarray = peaks[..., j[None, :], cols].mean(axis=-1)
+    return scores
 
 
 class FastMatcher:
@@ -246,7 +264,7 @@ class FastMatcher:
         self.config = config if config is not None else FastConfig()
         self._sets: list[PreparedSet] = []
         self._image_rows: np.ndarray | None = None  # (F, R, N*M), grown by add()
-        self._window_norm: np.ndarray | None = None  # (D, N*M, Wc)
+        self._inv_window_norm: np.ndarray | None = None  # (D, N*M, Wc)
 
     def __len__(self) -> int:
         return len(self._sets)
@@ -263,16 +281,34 @@ class FastMatcher:
             )
 
     def add(self, prepared: PreparedSet) -> int:
-        """Append a prepared set to the database; returns its index."""
+        """Append a prepared set to the database; returns its index.
+
+        The screening arrays grow by doubling, so adding M sets copies O(M) data.
+        """
         self._check(prepared)
-        if self._image_rows is None or self._window_norm is None:
-            self._image_rows = prepared.image_rows
-            self._window_norm = prepared.window_norm
-        else:
-            self._image_rows = np.concatenate([self._image_rows, prepared.image_rows], axis=2)
-            self._window_norm = np.concatenate([self._window_norm, prepared.window_norm], axis=1)
+        n = prepared.count
+        used = len(self._sets) * n
+        if self._image_rows is None or self._inv_window_norm is None:
+            self._image_rows = np.empty_like(
+                prepared.image_rows, shape=(*prepared.image_rows.shape[:2], 4 * n)
+            )
+            self._inv_window_norm = np.empty_like(
+                prepared.inv_window_norm,
+                shape=(prepared.inv_window_norm.shape[0], 4 * n, prepared.inv_window_norm.shape[2]),
+            )
+        elif used + n > self._image_rows.shape[2]:
+            self._image_rows = _grown(self._image_rows, axis=2)
+            self._inv_window_norm = _grown(self._inv_window_norm, axis=1)
+        self._image_rows[:, :, used : used + n] = prepared.image_rows
+        self._inv_window_norm[:, used : used + n, :] = prepared.inv_window_norm
         self._sets.append(prepared)
         return len(self._sets) - 1
+
+    def _screening_arrays(self) -> tuple[np.ndarray, np.ndarray] | None:
+        if self._image_rows is None or self._inv_window_norm is None:
+            return None
+        used = len(self._sets) * self._sets[0].count
+        return self._image_rows[:, :, :used], self._inv_window_norm[:, :used, :]
 
     def screen(self, query: PreparedSet) -> tuple[np.ndarray, np.ndarray]:
         """Screening peaks of every image pair against every known set.
@@ -283,31 +319,33 @@ class FastMatcher:
         """
         self._check(query)
         n = query.count
-        if self._image_rows is None or self._window_norm is None:
+        arrays = self._screening_arrays()
+        if arrays is None:
             return np.empty((0, n, n)), np.empty((0, n, n))
-        total = self._image_rows.shape[2]
+        image_rows, inv_window_norm = arrays
+        total = image_rows.shape[2]
         rows = query.template_rows.shape[2]
-        wd = self._window_norm.shape[2]
+        wd = inv_window_norm.shape[2]
         length = _fft_length(wd)
         lags = _same_shifts(wd) % length
-        n_dy = self._window_norm.shape[0]
+        n_dy = inv_window_norm.shape[0]
         best = np.full((n, total), -np.inf)
         best_col = np.zeros((n, total))
         for d in range(n_dy):
             dy = d - n_dy // 2
             r0, r1 = max(0, -dy), min(rows, rows - dy)
             spectrum = np.matmul(
-                query.template_rows[:, :, r0:r1], self._image_rows[:, r0 + dy : r1 + dy, :]
+                query.template_rows[:, :, r0:r1], image_rows[:, r0 + dy : r1 + dy, :]
             )  # (F, N, N*M): every query image against every known image
             corr = np.fft.irfft(spectrum.transpose(1, 2, 0), n=length, axis=2)[:, :, lags]
-            denom = query.template_norm[:, None, None] * self._window_norm[d][None, :, :]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ncc = np.where(denom > 1e-9, corr / denom, 0.0)
-            np.clip(ncc, -1.0, 1.0, out=ncc)
-            value, col = _peaks_along_columns(ncc)
+            ncc = corr * inv_window_norm[d][None, :, :]
+            ncc *= query.inv_template_norm[:, None, None].astype(np.float32)
+            col = np.argmax(ncc, axis=2)  # whole pixels: the screen ranks, it does not measure
+            value = np.take_along_axis(ncc, col[:, :, None], axis=2)[:, :, 0]
             better = value > best
             best = np.where(better, value, best)
             best_col = np.where(better, col, best_col)
+        best = np.clip(best, -1.0, 1.0)
         dx_full = (best_col - wd // 2) * (query.width_px / wd)
         m_sets = total // n
         return (
@@ -345,21 +383,34 @@ class FastMatcher:
         return matches
 
 
+def _grown(array: np.ndarray, axis: int) -> np.ndarray:
+    """A copy of ``array`` with twice the room along ``axis``, the data at the start."""
+    shape = list(array.shape)
+    shape[axis] *= 2
+    out = np.empty_like(array, shape=tuple(shape))
+    index = [slice(None)] * array.ndim
+    index[axis] = slice(0, array.shape[axis])
+    out[tuple(index)] = array
+    return out
+
+
 def pairwise_matches(
-    sets: list[ImageSet], config: FastConfig | None = None
+    sets: list[ImageSet], config: FastConfig | None = None, every_offset: bool = False
 ) -> dict[tuple[int, int], SetMatch]:
     """Algorithm 2 for every unordered pair ``(i, j)``, ``i < j``, set i as A.
 
-    Each set is prepared once. Unlike a localizer decision, which refines only the
-    most promising junctions and offsets, every pair is refined at every cyclic
-    offset, so that the result is the accurate stage's value for each pair.
+    Each set is prepared once and every pair is refined, at the offsets a localizer
+    decision would refine (``config.refine_offsets``), or at every cyclic offset
+    with ``every_offset`` (slower; it only matters between different junctions,
+    where all offsets score alike).
     """
     base = config if config is not None else FastConfig()
     prepared = [prepare(s, base) for s in sets]
     out: dict[tuple[int, int], SetMatch] = {}
     if not sets:
         return out
-    everything = replace(base, refine_candidates=len(sets), refine_offsets=sets[0].count)
+    offsets = sets[0].count if every_offset else base.refine_offsets
+    everything = replace(base, refine_candidates=len(sets), refine_offsets=offsets)
     for i in range(len(sets) - 1):
         later = FastMatcher(everything)
         for p in prepared[i + 1 :]:

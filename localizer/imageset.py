@@ -38,9 +38,7 @@ class ImageSet:
     def __post_init__(self) -> None:
         arr = np.asarray(self.images)
         if arr.ndim != 3:
-            raise LocalizerError(
-                f"an image set needs shape (N, height, width), got {arr.shape}"
-            )
+            raise LocalizerError(f"an image set needs shape (N, height, width), got {arr.shape}")
         n, h, w = arr.shape
         if n < 1:
             raise LocalizerError("an image set needs at least one image")

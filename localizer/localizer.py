@@ -175,7 +175,9 @@ class Localizer:
         """The query's match with every known junction, in node order."""
         return self._matcher.match(self._matcher.prepare(query))
 
-    def _best(self, prepared: PreparedSet) -> tuple[list[SetMatch], int | None, float, float | None]:
+    def _best(
+        self, prepared: PreparedSet
+    ) -> tuple[list[SetMatch], int | None, float, float | None]:
         matches = self._matcher.match(prepared)
         best, sim, margin = best_candidate(matches)
         return matches, best, sim, margin

@@ -127,9 +127,10 @@ def sums_from_integral(integral: np.ndarray, dys: np.ndarray, dxs: np.ndarray) -
     rows = np.take(integral, np.clip(dys + h, 0, h), axis=-2) - np.take(
         integral, np.clip(dys, 0, h), axis=-2
     )
-    return np.take(rows, np.clip(dxs + w, 0, w), axis=-1) - np.take(
+    sums: np.ndarray = np.take(rows, np.clip(dxs + w, 0, w), axis=-1) - np.take(
         rows, np.clip(dxs, 0, w), axis=-1
     )
+    return sums
 
 
 def ncc_same(template: np.ndarray, image: np.ndarray) -> np.ndarray:
@@ -156,7 +157,8 @@ def ncc_same(template: np.ndarray, image: np.ndarray) -> np.ndarray:
     # Below this the window is flat and the quotient is rounding noise.
     ok = denominator > 1e-9 * max(float(denominator.max()), 1e-300)
     out[ok] = numerator[ok] / denominator[ok]
-    return np.clip(out, -1.0, 1.0)
+    clipped: np.ndarray = np.clip(out, -1.0, 1.0)
+    return clipped
 
 
 def pair_peak(template: np.ndarray, image: np.ndarray) -> PairPeak:

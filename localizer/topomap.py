@@ -77,10 +77,10 @@ class TopoMap:
         ]
         ordered = sorted(found, key=lambda e: e.label)
         # networkx keeps no direction; restore first-traversal order from the visits.
-        first = {}
-        for a, b in zip(self._visits, self._visits[1:]):
+        first: dict[frozenset[int], tuple[int, int]] = {}
+        for a, b in zip(self._visits, self._visits[1:], strict=False):
             first.setdefault(frozenset((a, b)), (a, b))
-        return [MapEdge(*first[frozenset((e.u, e.v))], e.label) for e in ordered]
+        return [MapEdge(*first[frozenset((e.u, e.v))], label=e.label) for e in ordered]
 
     def to_dict(self) -> dict[str, Any]:
         """Nodes in id order and edges in label order, as plain JSON-ready data."""

@@ -68,7 +68,7 @@ def run_match(args: argparse.Namespace, out: TextIO) -> int:
             for j in range(i + 1, len(sets))
         }
     else:
-        matches = pairwise_matches(sets, _fast_config(args))
+        matches = pairwise_matches(sets, _fast_config(args), every_offset=args.every_offset)
     doc = match_document(list(args.dirs), matches, args.threshold)
     if args.json:
         out.write(json.dumps(doc, indent=2) + "\n")
@@ -92,7 +92,7 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     sets = _load(args)
     localizer = Localizer(LocalizerConfig(threshold=args.threshold, fast=_fast_config(args)))
-    visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets)]
+    visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]
     doc = map_document(localizer.map, visits)
     if args.json:
         out.write(dumps_document(doc))

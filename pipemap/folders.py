@@ -34,7 +34,9 @@ def _image_files(folder: Path) -> list[Path]:
             continue
         index = int(match.group(1))
         if index in found:
-            raise InputError(f"{folder}: two files for image {index}: {found[index].name}, {path.name}")
+            raise InputError(
+                f"{folder}: two files for image {index}: {found[index].name}, {path.name}"
+            )
         found[index] = path
     if not found:
         raise InputError(f"{folder}: no camera_image1..N image files")
@@ -68,7 +70,7 @@ def load_image_set(
         raise InputError(f"{path}: no such folder")
     if not path.is_dir():
         raise InputError(f"{path}: not a folder")
-    images = []
+    images: list[np.ndarray] = []
     for file in _image_files(path):
         try:
             image = _read_gray(file)

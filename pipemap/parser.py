@@ -95,6 +95,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_matching_options(p_match)
     p_match.add_argument(
+        "--every-offset",
+        action="store_true",
+        help="fast path: refine every cyclic offset, not only the two most promising",
+    )
+    p_match.add_argument(
         "--reference",
         action="store_true",
         help="use the slow full-resolution reference instead of the fast path",

@@ -13,7 +13,9 @@ from localizer import ImageSet
 from pipemap.folders import load_image_set, read_info
 
 REPO = Path(__file__).resolve().parents[1]
-PAPER_SETS = Path(os.environ.get("PIPEMAP_PAPER_IMAGESETS", REPO.parent / "shared" / "paper_imagesets"))
+PAPER_SETS = Path(
+    os.environ.get("PIPEMAP_PAPER_IMAGESETS", REPO.parent / "shared" / "paper_imagesets")
+)
 #: Two sets show the same junction when their recorded x, y are this close (README there).
 SAME_JUNCTION_M = 0.15
 

@@ -44,8 +44,15 @@ LOCALIZER_FORBIDDEN_STDLIB = ("os", "pathlib", "time", "datetime")
 FILE_CALLS = {
     "cv2": {"imread", "imreadmulti", "imwrite", "imwritemulti", "VideoCapture", "VideoWriter"},
     "numpy": {
-        "load", "save", "savez", "savez_compressed", "loadtxt", "savetxt", "genfromtxt",
-        "fromfile", "memmap",
+        "load",
+        "save",
+        "savez",
+        "savez_compressed",
+        "loadtxt",
+        "savetxt",
+        "genfromtxt",
+        "fromfile",
+        "memmap",
     },
     "io": {"open"},
     "builtins": {"open"},
@@ -226,47 +233,103 @@ def test_imports_follow_the_layering(relpath: str) -> None:
 
 BAD_SOURCES = [
     pytest.param("localizer/x.py", "import pybullet\n", "'pybullet'", id="localizer-pybullet"),
-    pytest.param("localizer/x.py", "from mcap.reader import make_reader\n", "'mcap.reader",
-                 id="localizer-mcap"),
+    pytest.param(
+        "localizer/x.py",
+        "from mcap.reader import make_reader\n",
+        "'mcap.reader",
+        id="localizer-mcap",
+    ),
     pytest.param("localizer/x.py", "import rerun as rr\n", "'rerun'", id="localizer-rerun"),
-    pytest.param("localizer/x.py", "def load():\n    from replay import reader\n",
-                 "'replay.reader'", id="localizer-replay-inside-function"),
-    pytest.param("localizer/x.py", "from pipemap.cli import main\n", "'pipemap.cli.main'",
-                 id="localizer-cli"),
+    pytest.param(
+        "localizer/x.py",
+        "def load():\n    from replay import reader\n",
+        "'replay.reader'",
+        id="localizer-replay-inside-function",
+    ),
+    pytest.param(
+        "localizer/x.py", "from pipemap.cli import main\n", "'pipemap.cli.main'", id="localizer-cli"
+    ),
     pytest.param("localizer/x.py", "import pipemap\n", "'pipemap'", id="localizer-pipemap"),
-    pytest.param("localizer/x.py", "from pipemap import __version__\n",
-                 "'pipemap.__version__'", id="localizer-pipemap-attr"),
-    pytest.param("localizer/x.py", "from pathlib import Path\n", "'pathlib.Path'",
-                 id="localizer-pathlib"),
+    pytest.param(
+        "localizer/x.py",
+        "from pipemap import __version__\n",
+        "'pipemap.__version__'",
+        id="localizer-pipemap-attr",
+    ),
+    pytest.param(
+        "localizer/x.py", "from pathlib import Path\n", "'pathlib.Path'", id="localizer-pathlib"
+    ),
     pytest.param("localizer/x.py", "import os.path\n", "'os.path'", id="localizer-os"),
     pytest.param("localizer/x.py", "import time\n", "'time'", id="localizer-time"),
-    pytest.param("localizer/x.py", "from datetime import datetime\n", "'datetime.datetime'",
-                 id="localizer-datetime"),
-    pytest.param("localizer/x.py", "from logging import basicConfig\n",
-                 "'logging.basicConfig'", id="localizer-from-logging-basicconfig"),
-    pytest.param("localizer/x.py", "import logging\nlogging.basicConfig(level=10)\n",
-                 "logging.basicConfig", id="localizer-logging-basicconfig"),
-    pytest.param("localizer/x.py", "def f(p):\n    with open(p) as fh:\n        return fh\n",
-                 "open()", id="localizer-open"),
-    pytest.param("localizer/x.py", "import cv2 as cv\nim = cv.imread('a.png')\n",
-                 "cv2.imread()", id="localizer-imread"),
-    pytest.param("localizer/x.py", "import importlib\nm = importlib.import_module('pybullet')\n",
-                 "'pybullet'", id="localizer-dynamic-import"),
-    pytest.param("localizer/sub/x.py", "from ...sim import world\n", "beyond top level",
-                 id="localizer-relative-escape"),
-    pytest.param("sim/x.py", "from localizer import ImageSet\n", "'localizer.ImageSet'",
-                 id="sim-localizer"),
+    pytest.param(
+        "localizer/x.py",
+        "from datetime import datetime\n",
+        "'datetime.datetime'",
+        id="localizer-datetime",
+    ),
+    pytest.param(
+        "localizer/x.py",
+        "from logging import basicConfig\n",
+        "'logging.basicConfig'",
+        id="localizer-from-logging-basicconfig",
+    ),
+    pytest.param(
+        "localizer/x.py",
+        "import logging\nlogging.basicConfig(level=10)\n",
+        "logging.basicConfig",
+        id="localizer-logging-basicconfig",
+    ),
+    pytest.param(
+        "localizer/x.py",
+        "def f(p):\n    with open(p) as fh:\n        return fh\n",
+        "open()",
+        id="localizer-open",
+    ),
+    pytest.param(
+        "localizer/x.py",
+        "import cv2 as cv\nim = cv.imread('a.png')\n",
+        "cv2.imread()",
+        id="localizer-imread",
+    ),
+    pytest.param(
+        "localizer/x.py",
+        "import importlib\nm = importlib.import_module('pybullet')\n",
+        "'pybullet'",
+        id="localizer-dynamic-import",
+    ),
+    pytest.param(
+        "localizer/sub/x.py",
+        "from ...sim import world\n",
+        "beyond top level",
+        id="localizer-relative-escape",
+    ),
+    pytest.param(
+        "sim/x.py", "from localizer import ImageSet\n", "'localizer.ImageSet'", id="sim-localizer"
+    ),
     pytest.param("sim/x.py", "import recorder\n", "'recorder'", id="sim-recorder"),
-    pytest.param("sim/x.py", "from mcap.writer import Writer\n", "'mcap.writer.Writer'",
-                 id="sim-mcap"),
-    pytest.param("recorder/x.py", "from replay.score import score\n", "'replay.score.score'",
-                 id="recorder-replay"),
-    pytest.param("recorder/x.py", "from pipemap.folders import load_image_set\n",
-                 "'pipemap.folders.load_image_set'", id="recorder-pipemap-folders"),
+    pytest.param(
+        "sim/x.py", "from mcap.writer import Writer\n", "'mcap.writer.Writer'", id="sim-mcap"
+    ),
+    pytest.param(
+        "recorder/x.py",
+        "from replay.score import score\n",
+        "'replay.score.score'",
+        id="recorder-replay",
+    ),
+    pytest.param(
+        "recorder/x.py",
+        "from pipemap.folders import load_image_set\n",
+        "'pipemap.folders.load_image_set'",
+        id="recorder-pipemap-folders",
+    ),
     pytest.param("replay/x.py", "import sim.world\n", "'sim.world'", id="replay-sim"),
     pytest.param("pipemap/errors.py", "import numpy\n", "'numpy'", id="errors-numpy"),
-    pytest.param("pipemap/__init__.py", "from pipemap.cli import main\n", "'pipemap.cli.main'",
-                 id="pipemap-init-cli"),
+    pytest.param(
+        "pipemap/__init__.py",
+        "from pipemap.cli import main\n",
+        "'pipemap.cli.main'",
+        id="pipemap-init-cli",
+    ),
 ]
 
 
@@ -279,23 +342,32 @@ def test_checker_catches_forbidden_import(relpath: str, source: str, named: str)
 
 
 GOOD_SOURCES = [
-    pytest.param("localizer/x.py",
-                 "from __future__ import annotations\nimport math\nimport numpy as np\n"
-                 "from scipy.signal import fftconvolve\nimport cv2\nimport networkx as nx\n"
-                 "from pipemap.errors import LocalizerError\nfrom pipemap import errors\n"
-                 "import logging\nlog = logging.getLogger(__name__)\n"
-                 "from .similarity import SetMatch\nfrom localizer.imageset import ImageSet\n"
-                 "small = cv2.resize(np.zeros((4, 4)), (2, 2))\n",
-                 id="localizer"),
-    pytest.param("recorder/x.py",
-                 "import mcap\nfrom sim import world\nfrom localizer import Localizer\n"
-                 "from pipemap.errors import PipemapError\n", id="recorder"),
-    pytest.param("replay/x.py",
-                 "from recorder.topics import TOPICS\nimport localizer\n"
-                 "def f():\n    import rerun\n", id="replay"),
-    pytest.param("pipemap/cli.py",
-                 "from replay import score\nfrom recorder import Recorder\nimport sim\n",
-                 id="pipemap-shell"),
+    pytest.param(
+        "localizer/x.py",
+        "from __future__ import annotations\nimport math\nimport numpy as np\n"
+        "from scipy.signal import fftconvolve\nimport cv2\nimport networkx as nx\n"
+        "from pipemap.errors import LocalizerError\nfrom pipemap import errors\n"
+        "import logging\nlog = logging.getLogger(__name__)\n"
+        "from .similarity import SetMatch\nfrom localizer.imageset import ImageSet\n"
+        "small = cv2.resize(np.zeros((4, 4)), (2, 2))\n",
+        id="localizer",
+    ),
+    pytest.param(
+        "recorder/x.py",
+        "import mcap\nfrom sim import world\nfrom localizer import Localizer\n"
+        "from pipemap.errors import PipemapError\n",
+        id="recorder",
+    ),
+    pytest.param(
+        "replay/x.py",
+        "from recorder.topics import TOPICS\nimport localizer\ndef f():\n    import rerun\n",
+        id="replay",
+    ),
+    pytest.param(
+        "pipemap/cli.py",
+        "from replay import score\nfrom recorder import Recorder\nimport sim\n",
+        id="pipemap-shell",
+    ),
 ]
 
 

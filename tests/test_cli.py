@@ -28,7 +28,16 @@ ROOT = Path(__file__).resolve().parents[1]
 COUNT = 6
 WIDTH_PX = 128
 HEIGHT_PX = 96
-PAIR_KEYS = {"a", "b", "similarity", "image_shift", "pixel_shift", "rotation_rad", "rotation_pinhole_rad", "same"}
+PAIR_KEYS = {
+    "a",
+    "b",
+    "similarity",
+    "image_shift",
+    "pixel_shift",
+    "rotation_rad",
+    "rotation_pinhole_rad",
+    "same",
+}
 
 
 # ---------------------------------------------------------------- fixture writers
@@ -192,9 +201,7 @@ def test_sets_with_different_image_counts(
     assert "5" in line and "6" in line
 
 
-def test_sets_with_different_image_sizes(
-    tmp_path: Path, capfd: pytest.CaptureFixture[str]
-) -> None:
+def test_sets_with_different_image_sizes(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     small = make_set(tmp_path, "small", seed=1)
     wide = make_set(tmp_path, "wide", seed=2, width_px=160)
     status, out, err = run(["map", str(small), str(wide)], capfd)
@@ -339,7 +346,9 @@ def rolled_pair(tmp_path: Path) -> tuple[Path, Path]:
 
 
 @pytest.mark.parametrize(
-    "extra", [[], ["--downsample", "4"], ["--reference"]], ids=["fast", "downsample-4", "reference"]
+    "extra",
+    [[], ["--downsample", "4"], ["--every-offset"], ["--reference"]],
+    ids=["fast", "downsample-4", "every-offset", "reference"],
 )
 def test_match_cyclic_permutation(
     extra: list[str], tmp_path: Path, capfd: pytest.CaptureFixture[str]

@@ -36,9 +36,7 @@ def sweep(pano: np.ndarray, count: int = 6, turn: int = 0, width: int = WIDTH) -
     """The N images a camera turning in equal steps sees of ``pano``, turned by ``turn``."""
     cols = pano.shape[1]
     step = cols // count
-    images = [
-        pano[:, (np.arange(width) + j * step + turn) % cols] for j in range(count)
-    ]
+    images = [pano[:, (np.arange(width) + j * step + turn) % cols] for j in range(count)]
     return ImageSet(np.stack(images), fov_rad=width / cols * 2.0 * math.pi)
 
 

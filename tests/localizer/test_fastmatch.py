@@ -42,7 +42,10 @@ def test_turned_sweep_gives_the_turn_as_rotation(seed: int, turn: int) -> None:
     pano = panorama(seed)
     a, b = sweep(pano), sweep(pano, turn=turn)
     match = _match(a, b)
-    assert abs(wrap_angle_rad(match.rotation_rad - expected_rotation_rad(turn, pano.shape[1]))) < ROTATION_TOL_RAD
+    assert (
+        abs(wrap_angle_rad(match.rotation_rad - expected_rotation_rad(turn, pano.shape[1])))
+        < ROTATION_TOL_RAD
+    )
     assert match.similarity > 0.6
 
 
@@ -64,9 +67,10 @@ def test_swapping_the_sets_mirrors_shift_and_rotation(seed: int, turn: int) -> N
     pano = panorama(seed)
     a, b = sweep(pano), sweep(pano, turn=turn)
     ab, ba = _match(a, b), _match(b, a)
-    assert ba.image_shift == (6 - ab.image_shift) % 6 or abs(
-        wrap_angle_rad(ab.rotation_rad + ba.rotation_rad)
-    ) < ROTATION_TOL_RAD
+    assert (
+        ba.image_shift == (6 - ab.image_shift) % 6
+        or abs(wrap_angle_rad(ab.rotation_rad + ba.rotation_rad)) < ROTATION_TOL_RAD
+    )
     assert abs(wrap_angle_rad(ab.rotation_rad + ba.rotation_rad)) < 2 * ROTATION_TOL_RAD
     assert ab.similarity == pytest.approx(ba.similarity, abs=0.05)
 

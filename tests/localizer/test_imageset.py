@@ -60,9 +60,7 @@ def test_non_numeric_dtype_raises() -> None:
         ImageSet(np.full((2, 8, 8), "a"))
 
 
-@pytest.mark.parametrize(
-    "fov_rad", [0.0, -0.1, 2.0 * math.pi, 7.0, math.inf, math.nan], ids=str
-)
+@pytest.mark.parametrize("fov_rad", [0.0, -0.1, 2.0 * math.pi, 7.0, math.inf, math.nan], ids=str)
 def test_fov_out_of_range_raises(fov_rad: float) -> None:
     with pytest.raises(LocalizerError, match="fov_rad"):
         ImageSet(_images(), fov_rad=fov_rad)
@@ -222,7 +220,7 @@ def test_nested_list_input_is_accepted() -> None:
 
 def test_defaults_are_the_papers_camera() -> None:
     s = ImageSet(_images())
-    assert DEFAULT_FOV_RAD == pytest.approx(math.radians(80.0))
+    assert pytest.approx(math.radians(80.0)) == DEFAULT_FOV_RAD
     assert DEFAULT_KEEP_TOP_FRACTION == 0.5
     assert s.fov_rad == DEFAULT_FOV_RAD
     assert s.keep_top_fraction == DEFAULT_KEEP_TOP_FRACTION

@@ -46,7 +46,7 @@ STRICT = 0.9
 PAPER_ORDER = [ProbeKind.ROTATE, ProbeKind.FORWARD, ProbeKind.BACK, ProbeKind.LEFT, ProbeKind.RIGHT]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _panorama(seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
     noise = rng.normal(size=(ROWS, COLS)).astype(np.float32)
@@ -329,11 +329,21 @@ def test_tree_exploration_builds_the_tree() -> None:
     decisions = [loc.localize(junction(seed)) for seed in seeds]
     assert [d.node for d in decisions] == [0, 1, 2, 1, 3, 4, 3, 5, 3, 6, 3, 1, 0]
     assert [d.known for d in decisions] == [
-        False, False, False, True, False, False, True, False, True, False, True, True, True
+        False,
+        False,
+        False,
+        True,
+        False,
+        False,
+        True,
+        False,
+        True,
+        False,
+        True,
+        True,
+        True,
     ]
-    assert [(e.u, e.v) for e in loc.map.edges()] == [
-        (0, 1), (1, 2), (1, 3), (3, 4), (3, 5), (3, 6)
-    ]
+    assert [(e.u, e.v) for e in loc.map.edges()] == [(0, 1), (1, 2), (1, 3), (3, 4), (3, 5), (3, 6)]
 
 
 def test_unseen_junctions_are_new_under_the_papers_threshold() -> None:

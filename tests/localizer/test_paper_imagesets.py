@@ -37,13 +37,15 @@ def reference() -> dict[tuple[str, str], dict[str, float]]:
 
 @pytest.fixture(scope="module")
 def pairs(paper_sets: dict[str, PaperSet]) -> list[tuple[PaperSet, PaperSet]]:
-    return [(paper_sets[a], paper_sets[b]) for a, b in itertools.combinations(sorted(paper_sets), 2)]
+    return [
+        (paper_sets[a], paper_sets[b]) for a, b in itertools.combinations(sorted(paper_sets), 2)
+    ]
 
 
 @pytest.fixture(scope="module")
 def fast(paper_sets: dict[str, PaperSet]):  # type: ignore[no-untyped-def]
     names = sorted(paper_sets)
-    got = pairwise_matches([paper_sets[n].images for n in names])
+    got = pairwise_matches([paper_sets[n].images for n in names], every_offset=True)
     return {(names[i], names[j]): m for (i, j), m in got.items()}
 
 
@@ -88,7 +90,9 @@ def test_localizer_cascade_decides_as_the_reference(paper_sets, reference) -> No
 
 
 def test_the_threshold_separates_same_from_different_junctions(fast, paper_sets, reference) -> None:  # type: ignore[no-untyped-def]
-    same = {k: m.similarity for k, m in fast.items() if paper_sets[k[0]].same_junction(paper_sets[k[1]])}
+    same = {
+        k: m.similarity for k, m in fast.items() if paper_sets[k[0]].same_junction(paper_sets[k[1]])
+    }
     different = [m.similarity for k, m in fast.items() if k not in same]
     assert len(same) == 36 and len(different) == 19
     # Every different-junction pair is rejected at the paper's threshold, and the two
@@ -158,7 +162,7 @@ def test_map_of_a_visit_sequence_is_the_true_map(paper_sets, sequence) -> None: 
     assert [d.node for d in decisions] == truth
     assert [d.known for d in decisions] == [truth.index(t) != i for i, t in enumerate(truth)]
     true_edges = []
-    for u, v in zip(truth, truth[1:]):
+    for u, v in zip(truth, truth[1:], strict=False):
         if u != v and {u, v} not in [set(e) for e in true_edges]:
             true_edges.append((u, v))
     got = [(e.u, e.v) for e in localizer.map.edges()]

@@ -308,7 +308,7 @@ def test_document_floats_are_rounded_to_six_decimals() -> None:
 def test_decision_record_equals_document_visit() -> None:
     m, visits = _document_inputs()
     doc = map_document(m, visits)
-    for (label, decision), record in zip(visits, doc["visits"]):
+    for (label, decision), record in zip(visits, doc["visits"], strict=True):
         assert decision_record(label, decision) == record
 
 
