@@ -233,9 +233,9 @@ def main() -> int:
         for arr in (
             prepared[names[0]].template_rows,
             prepared[names[0]].image_rows,
-            prepared[names[0]].window_norm,
+            prepared[names[0]].inv_window_norm,
             prepared[names[0]].fine.spectrum,
-            prepared[names[0]].fine.window_norm,
+            prepared[names[0]].fine.inv_window_norm,
         )
     )
     print(f"\n## Memory: {kept / 2**20:.2f} MiB kept per known junction")

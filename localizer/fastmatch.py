@@ -5,16 +5,22 @@ stages, both validated against the reference on the paper's own image sets
 (``tests/localizer/test_fastmatch.py``, ``benchmarks/bench_localizer.py``):
 
 1. **Screen** every known junction in one batch: images area-downsampled by
-   ``coarse_downsample``, vertical shift searched only within ``+-coarse_dy_px``.
+   ``coarse_downsample`` (columns) and ``coarse_row_downsample`` (rows), vertical
+   shift searched within ``+-coarse_dy_px`` (default 0: at 1/16 scale the area
+   averaging already blurs the vertical offsets the accurate stage searches for).
    For each vertical shift this is one complex matrix product over image rows for
-   all image pairs of all junctions, one batched inverse FFT along the columns and a
-   division by precomputed window norms. Cheap, biased, good enough to rank.
-2. **Refine** the ``refine_candidates`` best junctions at their ``refine_offsets``
-   best cyclic offsets: images decimated by ``fine_downsample`` (plain subsampling:
-   area averaging removes uncorrelated pixel noise and raised NCC by about 0.02 on the
-   paper's images, subsampling keeps the reference's statistics), full "same" range of
-   vertical and horizontal shifts by 2-D FFT, and a parabola through the peak's
-   neighbours for a sub-pixel column shift. Views of one junction from different
+   all image pairs of all junctions, one batched inverse FFT along the columns and
+   a multiplication by precomputed inverse window norms. Cheap, biased, good
+   enough to rank: it never decides (see :func:`localizer.localizer.best_candidate`).
+2. **Refine** the ``refine_candidates`` best junctions: the best at its
+   ``refine_offsets`` most promising cyclic offsets, the others (which only set the
+   margin) at their ``runner_up_offsets`` best. Images are decimated, columns by
+   ``fine_downsample`` and rows by ``fine_row_downsample`` (plain subsampling: area
+   averaging removes uncorrelated pixel noise and raised NCC by about 0.02 on the
+   paper's images; subsampling keeps the reference's statistics; rotation lives in
+   the columns, so rows can be sparser). The full "same" range of vertical and
+   horizontal shifts is searched by 2-D FFT, and a parabola through the peak's
+   neighbours gives a sub-pixel column shift. Views of one junction from different
    entries differ by tens of pixels vertically (robot pitch and roll turn with the
    camera), so the accurate stage must not restrict the vertical search.
 
@@ -25,13 +31,15 @@ prepared; the refinement's spectra are computed on demand for the few candidates
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
 from localizer.imageset import ImageSet
-from localizer.similarity import SetMatch, best_offset, sums_from_integral
+from localizer.similarity import SetMatch, best_offset, sums_from_integral, wrap_angle_rad
 from pipemap.errors import LocalizerError
 
 __all__ = ["FastConfig", "FastMatcher", "FineSpectra", "PreparedSet", "pairwise_matches", "prepare"]
@@ -42,13 +50,24 @@ class FastConfig:
     """Settings of the cascade (see the module docstring)."""
 
     coarse_downsample: int = 16
-    coarse_dy_px: int = 16
+    coarse_row_downsample: int = 16
+    coarse_dy_px: int = 0
     fine_downsample: int = 4
+    fine_row_downsample: int = 6
     refine_candidates: int = 2
     refine_offsets: int = 2
+    runner_up_offsets: int = 1
 
     def __post_init__(self) -> None:
-        for name in ("coarse_downsample", "fine_downsample", "refine_candidates", "refine_offsets"):
+        for name in (
+            "coarse_downsample",
+            "coarse_row_downsample",
+            "fine_downsample",
+            "fine_row_downsample",
+            "refine_candidates",
+            "refine_offsets",
+            "runner_up_offsets",
+        ):
             if getattr(self, name) < 1:
                 raise LocalizerError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.coarse_dy_px < 0:
@@ -76,20 +95,21 @@ class PreparedSet:
     fine: FineSpectra
 
 
-def _area_downsampled(images: np.ndarray, factor: int) -> np.ndarray:
-    if factor == 1:
+def _area_downsampled(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarray:
+    if row_factor == col_factor == 1:
         return images.astype(np.float64)
     n, h, w = images.shape
-    hd, wd = max(h // factor, 2), max(w // factor, 2)
+    hd, wd = max(h // row_factor, 2), max(w // col_factor, 2)
     out = np.empty((n, hd, wd), dtype=np.float64)
     for i in range(n):
         out[i] = cv2.resize(images[i], (wd, hd), interpolation=cv2.INTER_AREA)
     return out
 
 
-def _decimated(images: np.ndarray, factor: int) -> np.ndarray:
-    step = max(1, min(factor, images.shape[1] // 2, images.shape[2] // 2))
-    return np.ascontiguousarray(images[:, ::step, ::step], dtype=np.float32)
+def _decimated(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarray:
+    rows = max(1, min(row_factor, images.shape[1] // 2))
+    cols = max(1, min(col_factor, images.shape[2] // 2))
+    return np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float32)
 
 
 def _fft_length(size: int) -> int:
@@ -104,11 +124,11 @@ def _same_shifts(size: int) -> np.ndarray:
 def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     """Precompute everything the fast path needs of one image set."""
     cropped = image_set.cropped()
-    small = _area_downsampled(cropped, config.coarse_downsample)
+    small = _area_downsampled(cropped, config.coarse_row_downsample, config.coarse_downsample)
     n, rows, wd = small.shape
     zero_mean = small - small.mean(axis=(1, 2), keepdims=True)
     spectra = np.fft.rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
-    dy_max = min(config.coarse_dy_px // config.coarse_downsample, rows - 1)
+    dy_max = min(config.coarse_dy_px // config.coarse_row_downsample, rows - 1)
     dys = np.arange(-dy_max, dy_max + 1)
     inv_norms = _inverse(_window_norms(zero_mean, dys, _same_shifts(wd))).transpose(1, 0, 2)
     return PreparedSet(
@@ -125,11 +145,20 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
         image_rows=np.ascontiguousarray(spectra.transpose(2, 1, 0), np.complex64),
         inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
-        fine=_fine_spectra(_decimated(cropped, config.fine_downsample), image_set.width),
+        fine=_fine_spectra(
+            _decimated(cropped, config.fine_row_downsample, config.fine_downsample),
+            image_set.width,
+        ),
     )
 
 
-_SHAPE_FIELDS = ("coarse_downsample", "coarse_dy_px", "fine_downsample")
+_SHAPE_FIELDS = (
+    "coarse_downsample",
+    "coarse_row_downsample",
+    "coarse_dy_px",
+    "fine_downsample",
+    "fine_row_downsample",
+)
 
 
 def _subpixel(left: np.ndarray, centre: np.ndarray, right: np.ndarray) -> np.ndarray:
@@ -170,8 +199,6 @@ class FineSpectra:
     #: 1 / sqrt(local variance sum) over the "same" shift range, (N, R, W) float32;
     #: 0 where the window is flat.
     inv_window_norm: np.ndarray
-    #: Phase ramp that moves shift (-R/2, -W/2) to index (0, 0) of the correlation.
-    ramp: np.ndarray
 
 
 def _window_norms(zero_mean: np.ndarray, dys: np.ndarray, dxs: np.ndarray) -> np.ndarray:
@@ -201,15 +228,56 @@ def _inverse(norms: np.ndarray) -> np.ndarray:
     return out
 
 
+def _same_range_sums(values: np.ndarray, axis: int) -> np.ndarray:
+    """Window sums along ``axis`` for the "same" shifts ``-n/2 .. n/2 - 1``.
+
+    The window at shift s covers ``[s, s + n)`` clipped to ``[0, n)``: a prefix of the
+    axis for s < 0 and a suffix for s >= 0, so slices of one cumulative sum give
+    every window without a gather.
+    """
+    n = values.shape[axis]
+    half = n // 2
+
+    def part(start: int, stop: int) -> tuple[slice, ...]:
+        index = [slice(None)] * values.ndim
+        index[axis] = slice(start, stop)
+        return tuple(index)
+
+    prefix = np.cumsum(values, axis=axis)
+    out = np.empty_like(prefix)
+    out[part(0, half)] = prefix[part(n - half - 1, n - 1)]  # s < 0: the first n + s
+    total = prefix[part(n - 1, n)]
+    out[part(half, half + 1)] = total  # s = 0: everything
+    out[part(half + 1, n)] = total - prefix[part(0, n - half - 1)]  # s > 0: all but s
+    return out
+
+
+def _same_range_norms(zero_mean: np.ndarray) -> np.ndarray:
+    """sqrt(S2 - S1^2/n) of every window of the "same" range, separably: (N, R, W)."""
+    rows, width = zero_mean.shape[-2:]
+    s1 = _same_range_sums(_same_range_sums(zero_mean, -1), -2)
+    s2 = _same_range_sums(_same_range_sums(zero_mean * zero_mean, -1), -2)
+    norms: np.ndarray = np.sqrt(np.maximum(s2 - s1 * s1 / (rows * width), 0.0))
+    return norms
+
+
+@functools.lru_cache(maxsize=8)
+def _ramp(length: tuple[int, int], rows: int, width: int) -> np.ndarray:
+    """Phase ramp that moves correlation shift (-R/2, -W/2) to output index (0, 0)."""
+    fy = np.fft.fftfreq(length[0])[:, None]
+    fx = np.fft.rfftfreq(length[1])[None, :]
+    ramp = np.exp(-2j * np.pi * (fy * (rows // 2) + fx * (width // 2))).astype(np.complex64)
+    ramp.setflags(write=False)
+    return ramp
+
+
 def _fine_spectra(fine: np.ndarray, full_width_px: int) -> FineSpectra:
     n, rows, width = fine.shape
     zero_mean = fine.astype(np.float64) - fine.mean(axis=(1, 2), keepdims=True)
     length = (_fft_length(rows), _fft_length(width))
-    spectrum = np.fft.rfft2(zero_mean.astype(np.float32), s=length)
-    norms = _window_norms(zero_mean, _same_shifts(rows), _same_shifts(width))
-    fy = np.fft.fftfreq(length[0])[:, None]
-    fx = np.fft.rfftfreq(length[1])[None, :]
-    ramp = np.exp(-2j * np.pi * (fy * (rows // 2) + fx * (width // 2))).astype(np.complex64)
+    # Two stages so that the zero rows of the padding are never transformed along x.
+    along_x = np.fft.rfft(zero_mean.astype(np.float32), n=length[1], axis=2)
+    spectrum = np.fft.fft(along_x, n=length[0], axis=1)
     return FineSpectra(
         rows=rows,
         width=width,
@@ -217,31 +285,38 @@ def _fine_spectra(fine: np.ndarray, full_width_px: int) -> FineSpectra:
         length=length,
         spectrum=spectrum,
         inv_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
-        inv_window_norm=_inverse(norms).astype(np.float32),
-        ramp=ramp,
+        inv_window_norm=_inverse(_same_range_norms(zero_mean)).astype(np.float32),
     )
 
 
 def _fine_peaks(
-    query: FineSpectra, known: FineSpectra, pairs: np.ndarray
+    query: FineSpectra, blocks: list[tuple[FineSpectra, int]]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Peak NCC and sub-pixel column shift (decimated px) of image pairs ``(j, m)``.
+    """Peak NCC and sub-pixel column shift (decimated px) of blocks of image pairs.
 
-    ``corr[dy, dx] = sum T[y, x] B[y + dy, x + dx]`` is ``irfft2(conj(FT) * FB)``; the
-    ramp moves the "same" range of shifts to the start of the output.
+    A block ``(known, k)`` pairs image j of the query with image ``(j + k) mod N`` of
+    ``known``; the result has one row of N values per block.
+    ``corr[dy, dx] = sum T[y, x] B[y + dy, x + dx]`` is ``irfft2(conj(FT) * FB)``; a
+    phase ramp moves the "same" range of shifts to the start of the output, so the
+    inverse transform along x runs only on the rows that are kept.
     """
-    rows, width = known.rows, known.width
-    product = np.conj(query.spectrum[pairs[:, 0]]) * known.spectrum[pairs[:, 1]]
-    product *= known.ramp
-    ncc = (
-        np.fft.irfft2(product, s=known.length)[:, :rows, :width]
-        * known.inv_window_norm[pairs[:, 1]]
-    )
-    ncc *= query.inv_norm[pairs[:, 0], None, None].astype(np.float32)
-    best_row = np.argmax(ncc.reshape(len(pairs), -1), axis=1) // width
-    row_values = ncc[np.arange(len(pairs)), best_row]  # (P, W): the peak's row
-    value, column = _peaks_along_columns(row_values)
-    return np.clip(value, -1.0, 1.0), column - width // 2
+    n, rows, width = query.inv_window_norm.shape
+    ramped = np.conj(query.spectrum) * _ramp(query.length, rows, width)
+    product = np.empty((len(blocks), *ramped.shape), dtype=ramped.dtype)
+    inv_window = np.empty((len(blocks), n, rows, width), dtype=np.float32)
+    for b, (known, k) in enumerate(blocks):
+        order = (np.arange(n) + k) % n
+        np.multiply(ramped, known.spectrum[order], out=product[b])
+        inv_window[b] = known.inv_window_norm[order]
+    product = product.reshape(-1, *ramped.shape[1:])
+    along_y = np.fft.ifft(product, axis=1)[:, :rows]
+    ncc = np.fft.irfft(along_y, n=query.length[1], axis=2)[:, :, :width]
+    ncc *= inv_window.reshape(-1, rows, width)
+    ncc *= np.tile(query.inv_norm, len(blocks)).astype(np.float32)[:, None, None]
+    best_row = np.argmax(ncc.reshape(len(ncc), -1), axis=1) // width
+    value, column = _peaks_along_columns(ncc[np.arange(len(ncc)), best_row])
+    shape = (len(blocks), n)
+    return np.clip(value, -1.0, 1.0).reshape(shape), (column - width // 2).reshape(shape)
 
 
 def _offset_scores(peaks: np.ndarray) -> np.ndarray:
@@ -353,34 +428,68 @@ class FastMatcher:
             dx_full.reshape(n, m_sets, n).transpose(1, 0, 2),
         )
 
-    def _refine(self, query: PreparedSet, index: int, offsets: np.ndarray) -> SetMatch:
-        known = self._sets[index].fine
-        n = query.count
-        j = np.arange(n)
-        pairs = np.array([(jj, (jj + k) % n) for k in offsets for jj in j])
-        value, column = _fine_peaks(query.fine, known, pairs)
-        peak_ncc = np.full((n, n), -np.inf)
-        peak_dx = np.zeros((n, n))
-        peak_ncc[pairs[:, 0], pairs[:, 1]] = value
-        peak_dx[pairs[:, 0], pairs[:, 1]] = column * (known.full_width_px / known.width)
-        return best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
-
     def match(self, query: PreparedSet) -> list[SetMatch]:
         """Algorithm 2 between the query (as A) and every known set (as B)."""
         peaks, shifts = self.screen(query)
-        matches = [
-            replace(best_offset(peaks[i], shifts[i], query.fov_rad, query.width_px), refined=False)
-            for i in range(peaks.shape[0])
-        ]
-        if not matches:
-            return matches
+        if peaks.shape[0] == 0:
+            return []
         scores = _offset_scores(peaks)  # (M, N)
+        matches = _screened_matches(scores, shifts, query.fov_rad, query.width_px)
         order = sorted(range(len(matches)), key=lambda i: (-matches[i].similarity, i))
-        n_offsets = min(self.config.refine_offsets, query.count)
+        n = query.count
+        n_offsets = min(self.config.refine_offsets, n)
+        # The best candidate decides: refine its most promising offsets. The others
+        # only set the margin: their best few offsets are enough.
+        n_runner_up = min(self.config.runner_up_offsets, n)
+        blocks = [
+            (i, int(k))
+            for rank, i in enumerate(order[: self.config.refine_candidates])
+            for k in np.argsort(-scores[i], kind="stable")[
+                : n_offsets if rank == 0 else n_runner_up
+            ]
+        ]
+        values, columns = _fine_peaks(query.fine, [(self._sets[i].fine, k) for i, k in blocks])
+        j = np.arange(n)
         for i in order[: self.config.refine_candidates]:
-            offsets = np.argsort(-scores[i], kind="stable")[:n_offsets]
-            matches[i] = self._refine(query, i, offsets)
+            peak_ncc = np.full((n, n), -np.inf)
+            peak_dx = np.zeros((n, n))
+            for b, (owner, k) in enumerate(blocks):
+                if owner == i:
+                    fine = self._sets[i].fine
+                    peak_ncc[j, (j + k) % n] = values[b]
+                    peak_dx[j, (j + k) % n] = columns[b] * (fine.full_width_px / fine.width)
+            matches[i] = best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
         return matches
+
+
+def _screened_matches(
+    scores: np.ndarray, shifts: np.ndarray, fov_rad: float, width_px: int
+) -> list[SetMatch]:
+    """Algorithm 2's choice for every screened junction at once (``refined=False``).
+
+    The same arithmetic as :func:`localizer.similarity.best_offset`, vectorized over
+    the M junctions so that screening a large database costs no Python loop.
+    """
+    m, n = scores.shape
+    j = np.arange(n)
+    best_k = np.argmax(scores, axis=1)  # first maximum: lowest offset on a tie
+    cols = (j[None, :] + best_k[:, None]) % n  # (M, N): the pairs of each best offset
+    pair_shifts = shifts[np.arange(m)[:, None], j[None, :], cols]
+    mean_shift = pair_shifts.mean(axis=1)
+    focal_px = (width_px / 2.0) / math.tan(fov_rad / 2.0)
+    median_angle = np.median(2.0 * np.arctan(pair_shifts / (2.0 * focal_px)), axis=1)
+    step = 2.0 * math.pi / n
+    return [
+        SetMatch(
+            similarity=float(scores[i, best_k[i]]),
+            image_shift=int(best_k[i]),
+            pixel_shift=float(mean_shift[i]),
+            rotation_rad=wrap_angle_rad(best_k[i] * step + mean_shift[i] * fov_rad / width_px),
+            rotation_pinhole_rad=wrap_angle_rad(best_k[i] * step + median_angle[i]),
+            refined=False,
+        )
+        for i in range(m)
+    ]
 
 
 def _grown(array: np.ndarray, axis: int) -> np.ndarray:
@@ -410,7 +519,9 @@ def pairwise_matches(
     if not sets:
         return out
     offsets = sets[0].count if every_offset else base.refine_offsets
-    everything = replace(base, refine_candidates=len(sets), refine_offsets=offsets)
+    everything = replace(
+        base, refine_candidates=len(sets), refine_offsets=offsets, runner_up_offsets=offsets
+    )
     for i in range(len(sets) - 1):
         later = FastMatcher(everything)
         for p in prepared[i + 1 :]:

@@ -72,7 +72,7 @@ def _add_matching_options(p: argparse.ArgumentParser) -> None:
         "--downsample",
         type=_positive_int,
         default=None,
-        help="fast path: decimation factor of the accurate stage (default 4)",
+        help="fast path: column decimation factor of the accurate stage (default 4)",
     )
 
 

@@ -125,3 +125,34 @@ def test_pairwise_matches_cover_every_unordered_pair_in_order() -> None:
     got = pairwise_matches(sets)
     assert list(got) == [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
     assert all(m.refined for m in got.values())
+
+
+@pytest.mark.parametrize("every_offset", [False, True])
+def test_a_pair_does_not_depend_on_the_other_sets(every_offset: bool) -> None:
+    pano = panorama(11)
+    sets = [sweep(pano), sweep(panorama(12)), sweep(pano, turn=200), sweep(panorama(13))]
+    together = pairwise_matches(sets, every_offset=every_offset)
+    for i, j in [(0, 2), (1, 3), (0, 3)]:
+        alone = pairwise_matches([sets[i], sets[j]], every_offset=every_offset)[(0, 1)]
+        assert together[(i, j)] == alone
+
+
+def test_screened_matches_equal_best_offset_per_junction() -> None:
+    from dataclasses import replace
+
+    from localizer import best_offset
+    from localizer.fastmatch import _offset_scores, _screened_matches
+
+    rng = np.random.default_rng(4)
+    peaks = rng.uniform(-0.2, 0.9, size=(7, 6, 6))
+    peaks[3] = 0.5  # all offsets tie: the lowest offset wins, as in best_offset
+    shifts = rng.uniform(-300, 300, size=(7, 6, 6))
+    got = _screened_matches(_offset_scores(peaks), shifts, math.radians(80), 800)
+    for i in range(7):
+        want = replace(best_offset(peaks[i], shifts[i], math.radians(80), 800), refined=False)
+        assert got[i].image_shift == want.image_shift
+        assert got[i].similarity == pytest.approx(want.similarity, abs=1e-12)
+        assert got[i].pixel_shift == pytest.approx(want.pixel_shift, abs=1e-9)
+        assert got[i].rotation_rad == pytest.approx(want.rotation_rad, abs=1e-12)
+        assert got[i].rotation_pinhole_rad == pytest.approx(want.rotation_pinhole_rad, abs=1e-12)
+        assert not got[i].refined
