@@ -7,7 +7,7 @@ exits with status 2. Any other exception is a bug and keeps its traceback.
 
 from __future__ import annotations
 
-__all__ = ["PipemapError", "InputError", "LocalizerError"]
+__all__ = ["PipemapError", "InputError", "LocalizerError", "SimError"]
 
 
 class PipemapError(Exception):
@@ -20,3 +20,7 @@ class InputError(PipemapError):
 
 class LocalizerError(PipemapError):
     """The localizer was given data it cannot work with (sizes, counts, settings)."""
+
+
+class SimError(PipemapError):
+    """A simulation was asked for something impossible: a malformed network, a bad setting."""
