@@ -30,6 +30,10 @@ def _run(argv: Sequence[str] | None) -> int:
 
         runner = folder_commands.run_match if args.command == "match" else folder_commands.run_map
         return runner(args, sys.stdout)
+    if args.command == "sim":
+        from pipemap.sim_command import run_sim
+
+        return run_sim(args, sys.stdout)
     raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other
 
 

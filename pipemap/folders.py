@@ -17,7 +17,7 @@ import numpy as np
 from localizer import ImageSet
 from pipemap.errors import InputError
 
-__all__ = ["IMAGE_SUFFIXES", "load_image_set", "load_image_sets", "read_info"]
+__all__ = ["IMAGE_SUFFIXES", "load_image_set", "load_image_sets", "read_info", "write_image_set"]
 
 #: Image formats accepted in a set folder (those OpenCV decodes everywhere).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
@@ -123,3 +123,19 @@ def read_info(folder: str | Path) -> dict[str, str]:
         if sep and value.strip():
             info[key.strip()] = value.strip()
     return info
+
+
+def write_image_set(folder: str | Path, images: np.ndarray, info: dict[str, str]) -> None:
+    """Write one sweep in the paper's layout: ``camera_image1..N.png`` and ``info.txt``.
+
+    ``images`` is (N, H, W, 3) RGB or (N, H, W) gray, uint8. ``info`` lines are written
+    as ``key: value`` in the given order. The folder must not exist yet.
+    """
+    path = Path(folder)
+    path.mkdir(parents=True, exist_ok=False)
+    for i, image in enumerate(images, start=1):
+        bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if image.ndim == 3 else image
+        if not cv2.imwrite(str(path / f"camera_image{i}.png"), bgr):
+            raise InputError(f"{path}: cannot write camera_image{i}.png")
+    lines = [f"{key}: {value}" for key, value in info.items()]
+    (path / "info.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")

@@ -45,6 +45,8 @@ _threshold = _checked(
     float, lambda v: math.isfinite(v) and -1.0 <= v <= 1.0, "threshold must be in [-1, 1]"
 )
 _positive_int = _checked(int, lambda v: v >= 1, "must be at least 1")
+_seed = _checked(int, lambda v: 0 <= v < 2**63, "seed must be in [0, 2^63)")
+_resolution = _checked(int, lambda v: 16 <= v <= 4096, "resolution must be 16..4096 px")
 _fraction = _checked(float, lambda v: 0.0 < v <= 1.0, "must be in (0, 1]")
 _fov_deg = _checked(float, lambda v: 0.0 < v < 360.0, "field of view must be in (0, 360) degrees")
 
@@ -112,6 +114,24 @@ def build_parser() -> argparse.ArgumentParser:
         "for each and build the topological map (Algorithms 1 and 4).",
     )
     _add_matching_options(p_map)
+
+    p_sim = sub.add_parser(
+        "sim",
+        help="run a simulated exploration and save its sweeps",
+        description="Explore a pipe network by the right-most-branch rule and save every "
+        "junction sweep as DIR/0001, DIR/0002, ... in the paper's folder layout.",
+    )
+    p_sim.add_argument("--network", required=True, help="paper, grid:RxC, random:N or tree:N")
+    p_sim.add_argument("--start", default=None, help="start node label (default: the entry)")
+    p_sim.add_argument("--seed", type=_seed, default=0, help="seed of every random draw (0)")
+    p_sim.add_argument(
+        "--condition",
+        choices=["perfect", "noise", "active", "entrance", "autonomous"],
+        default="perfect",
+        help="placement at junctions, as in the paper (default perfect)",
+    )
+    p_sim.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
+    p_sim.add_argument("--save-sweeps", required=True, metavar="DIR", help="new or empty folder")
     return parser
 
 

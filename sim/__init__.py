@@ -1,1 +1,31 @@
-"""sim: not built yet (see the open issues)."""
+"""The simulated world: pipe networks, their look, the robot's tours and sweeps.
+
+Knows nothing of MCAP or of the localizer. Uses PyBullet (DIRECT, TinyRenderer)
+for rendering and range rays; everything random draws from the run's seed.
+"""
+
+from __future__ import annotations
+
+from sim.episode import Condition, Episode, Pose, SimConfig, Sweep, Visit
+from sim.network import Network, Node, NodeKind, Pipe, build_network
+from sim.plan import Tour, right_hand_tour, tour_edges
+from sim.world import CameraSpec, World
+
+__all__ = [
+    "CameraSpec",
+    "Condition",
+    "Episode",
+    "Network",
+    "Node",
+    "NodeKind",
+    "Pipe",
+    "Pose",
+    "SimConfig",
+    "Sweep",
+    "Tour",
+    "Visit",
+    "World",
+    "build_network",
+    "right_hand_tour",
+    "tour_edges",
+]

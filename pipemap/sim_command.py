@@ -1,0 +1,109 @@
+"""``pipemap sim``: run an episode and save every sweep in the paper's folder layout.
+
+``DIR/0001``, ``DIR/0002``, ... in visit order, each ``camera_image1..N.png`` plus
+``info.txt`` with the camera pose at the sweep start and the true node, so that
+``pipemap map DIR/*`` maps the run. In the ``active`` condition the localizer runs
+online and its probe sweeps go to ``DIR/NNNN/probes/<kind>/`` (inside the visit's
+folder, so they are not visits themselves).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import TextIO
+
+import cv2
+import numpy as np
+
+from pipemap.errors import InputError, SimError
+from pipemap.folders import write_image_set
+
+__all__ = ["run_sim"]
+
+
+def _info(pose: object, node: str) -> dict[str, str]:
+    fields = ("x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad")
+    keys = ("x", "y", "z", "roll", "pitch", "yaw")
+    info = {"cam_joint_pos": ""}
+    for key, name in zip(keys, fields, strict=True):
+        info[key] = repr(float(getattr(pose, name)))
+    info["node"] = node
+    return info
+
+
+def _gray_set(images: np.ndarray, fov_rad: float):  # type: ignore[no-untyped-def]
+    from localizer import ImageSet
+
+    return ImageSet(
+        np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images]), fov_rad=fov_rad
+    )
+
+
+def run_sim(args: argparse.Namespace, out: TextIO) -> int:
+    """Validate, build the world, run the episode, write the sweeps, print a summary."""
+    from sim.episode import Condition, Episode, SimConfig
+    from sim.network import build_network
+    from sim.world import CameraSpec, World
+
+    target = Path(args.save_sweeps)
+    if target.exists() and (not target.is_dir() or any(target.iterdir())):
+        raise InputError(f"{target}: exists and is not an empty folder; refusing to overwrite")
+    network = build_network(args.network, seed=args.seed)
+    condition = Condition(args.condition)
+    if condition is Condition.AUTONOMOUS:
+        raise SimError(
+            "the autonomous condition needs the robot controller, which is not built yet"
+        )
+    if args.start is not None and args.start not in network.labels:
+        raise InputError(
+            f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
+        )
+    camera = CameraSpec(resolution_px=args.resolution)
+    config = SimConfig(condition=condition, seed=args.seed, camera=camera)
+    target.mkdir(parents=True, exist_ok=True)
+    with World(network, seed=args.seed) as world:
+        episode = Episode(world, config, start=args.start)
+        localizer = None
+        if condition is Condition.ACTIVE:
+            from localizer import Localizer
+
+            localizer = Localizer()
+        sweeps = 0
+        for visit in episode.visits():
+            folder = target / f"{visit.index + 1:04d}"
+            write_image_set(folder, visit.sweep.images, _info(visit.pose, visit.node))
+            sweeps += 1
+            if localizer is not None:
+                sweeps += _localize_with_probes(localizer, visit, folder, camera.fov_rad)
+    tour = episode.tour
+    distance = sum(
+        network.length_m(a.node, b.node) for a, b in zip(tour.visits, tour.visits[1:], strict=False)
+    )
+    status = "complete" if tour.complete else "incomplete"
+    out.write(
+        f"network {args.network} from {tour.visits[0].node}, condition {condition.value}: "
+        f"{len(tour.visits)} visits of {len(tour.covered_nodes)}/{len(network.nodes)} nodes, "
+        f"{distance:.2f} m, {sweeps} sweeps, {status}\n"
+    )
+    return 0 if tour.complete else 1
+
+
+def _localize_with_probes(localizer, visit, folder: Path, fov_rad: float) -> int:  # type: ignore[no-untyped-def]
+    """Run the online localizer on a visit; each probe it asks for is swept and saved."""
+    saved = 0
+
+    class _Probes:
+        def probe(self, request):  # type: ignore[no-untyped-def]
+            nonlocal saved
+            sweep = visit.probe(request.yaw_rad, request.forward_m, request.left_m)
+            write_image_set(
+                folder / "probes" / request.kind.value,
+                sweep.images,
+                _info(sweep.start_pose, visit.node),
+            )
+            saved += 1
+            return _gray_set(sweep.images, fov_rad)
+
+    localizer.localize(_gray_set(visit.sweep.images, fov_rad), _Probes())
+    return saved

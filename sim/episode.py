@@ -1,0 +1,169 @@
+"""Episodes in the placement conditions of the paper: junction sweeps along a tour.
+
+The robot visits the nodes in the order of the right-most-branch rule
+(:func:`sim.plan.right_hand_tour`) and sweeps its camera at each:
+
+* ``perfect``: placed exactly at the node centre;
+* ``noise``: placed about 3 cm off centre in a random direction;
+* ``active``: as ``noise``, and the caller may ask for probe sweeps after small
+  moves (:meth:`Visit.probe`), as the localizer's active vision does;
+* ``entrance``: placed at the node entrance and driven the radius to the centre
+  with odometry error (a slipping, noisy drive).
+
+The camera faces the direction of travel when a sweep starts and turns clockwise
+(seen from above) by ``2*pi/N`` between images, the convention in which the
+paper's rotation estimate ``I*2pi/N + P*fov/W`` equals the heading change.
+The fully autonomous condition, driven by the sensor-based controller, is not
+part of this module.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pipemap.errors import SimError
+from sim.network import Network
+from sim.plan import right_hand_tour
+from sim.world import CameraSpec, World
+
+__all__ = ["Condition", "Episode", "Pose", "SimConfig", "Sweep", "Visit"]
+
+
+class Condition(enum.Enum):
+    """How the robot is placed at each junction (the paper's experiment conditions)."""
+
+    PERFECT = "perfect"
+    NOISE = "noise"
+    ACTIVE = "active"
+    ENTRANCE = "entrance"
+    AUTONOMOUS = "autonomous"
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Camera pose in the world: position (m) and roll, pitch, yaw (rad)."""
+
+    x_m: float
+    y_m: float
+    z_m: float
+    roll_rad: float = 0.0
+    pitch_rad: float = 0.0
+    yaw_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Settings of an episode."""
+
+    condition: Condition = Condition.PERFECT
+    seed: int = 0
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    images_per_sweep: int = 6
+    camera_height_m: float = 0.05
+    noise_offset_m: float = 0.03
+    entrance_slip: float = 0.05
+    texture_px: int = 512
+
+    def __post_init__(self) -> None:
+        if self.images_per_sweep < 1:
+            raise SimError(f"images per sweep must be >= 1, got {self.images_per_sweep}")
+        if self.noise_offset_m < 0 or self.entrance_slip < 0:
+            raise SimError("noise offset and slip must be >= 0")
+
+
+@dataclass(frozen=True, eq=False)
+class Sweep:
+    """One camera sweep: N RGB images (N, H, W, 3) in sweep order, the pose at its start,
+    and the true node (ground truth, for scoring only)."""
+
+    images: np.ndarray
+    start_pose: Pose
+    true_node: str
+    probe: tuple[float, float, float] | None = None  # (yaw, forward, left) of a probe
+
+
+class Visit:
+    """The robot at one node: its sweep, and probe sweeps on request."""
+
+    def __init__(self, episode: Episode, index: int, node: str, pose: Pose) -> None:
+        self._episode = episode
+        self.index = index
+        self.node = node
+        self.pose = pose
+        self.sweep = episode._sweep(node, pose)
+
+    def probe(self, yaw_rad: float, forward_m: float, left_m: float) -> Sweep:
+        """The sweep after turning by ``yaw_rad`` and moving in the robot's own frame."""
+        if self._episode.config.condition is not Condition.ACTIVE:
+            raise SimError("probe moves are only made in the active condition")
+        p = self.pose
+        x = p.x_m + forward_m * math.cos(p.yaw_rad) - left_m * math.sin(p.yaw_rad)
+        y = p.y_m + forward_m * math.sin(p.yaw_rad) + left_m * math.cos(p.yaw_rad)
+        moved = Pose(x, y, p.z_m, p.roll_rad, p.pitch_rad, p.yaw_rad + yaw_rad)
+        sweep = self._episode._sweep(self.node, moved)
+        return Sweep(sweep.images, moved, self.node, (yaw_rad, forward_m, left_m))
+
+
+class Episode:
+    """A tour of a network in a placement condition. Iterate to get the visits."""
+
+    def __init__(self, world: World, config: SimConfig, start: str | None = None) -> None:
+        if config.condition is Condition.AUTONOMOUS:
+            raise SimError("the autonomous condition needs the robot controller, not an Episode")
+        self.world = world
+        self.network: Network = world.network
+        self.config = config
+        self.tour = right_hand_tour(self.network, start)
+        self._rng = np.random.default_rng(config.seed)
+
+    def _sweep(self, node: str, pose: Pose) -> Sweep:
+        n = self.config.images_per_sweep
+        # A hair off any ring of mesh vertices: TinyRenderer slows down 100x on one.
+        eye = (pose.x_m + 1.3e-4, pose.y_m + 0.7e-4, pose.z_m)
+        images = np.stack(
+            [
+                self.world.render(eye, pose.yaw_rad - j * 2.0 * math.pi / n, self.config.camera)
+                for j in range(n)
+            ]
+        )
+        return Sweep(images, pose, node)
+
+    def _arrival_heading(self, node: str, arrived_from: str | None, leave_to: str | None) -> float:
+        headings = self.network.pipe_headings(node)
+        if arrived_from is not None:
+            return math.remainder(headings[arrived_from] + math.pi, 2.0 * math.pi)
+        if leave_to is not None:
+            return headings[leave_to]
+        return 0.0
+
+    def _placed(self, node: str, heading: float) -> Pose:
+        n = self.network.node(node)
+        x, y = n.x_m, n.y_m
+        condition = self.config.condition
+        if condition in (Condition.NOISE, Condition.ACTIVE):
+            angle = self._rng.uniform(0.0, 2.0 * math.pi)
+            offset = self.config.noise_offset_m * self._rng.uniform(0.8, 1.2)
+            x, y = x + offset * math.cos(angle), y + offset * math.sin(angle)
+        elif condition is Condition.ENTRANCE:
+            # Start where the node's sphere meets the incoming pipe, drive the radius
+            # forward by odometry: the true distance differs by slip and the heading
+            # by a small drift.
+            radius = self.network.diameter_m / 2.0
+            travelled = radius * (1.0 + self._rng.normal(0.0, self.config.entrance_slip))
+            drift = self._rng.normal(0.0, 0.03)
+            x -= radius * math.cos(heading)
+            y -= radius * math.sin(heading)
+            x += travelled * math.cos(heading + drift)
+            y += travelled * math.sin(heading + drift)
+        return Pose(x, y, self.config.camera_height_m, 0.0, 0.0, heading)
+
+    def visits(self) -> Iterator[Visit]:
+        """The visits in tour order, each with its sweep already taken."""
+        for index, visit in enumerate(self.tour.visits):
+            heading = self._arrival_heading(visit.node, visit.arrived_from, visit.leave_to)
+            yield Visit(self, index, visit.node, self._placed(visit.node, heading))

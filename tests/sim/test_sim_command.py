@@ -1,0 +1,104 @@
+"""``pipemap sim`` end to end, and what the localizer makes of a simulated tour."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from localizer import DEFAULT_THRESHOLD, pairwise_matches, wrap_angle_rad
+from pipemap.cli import main
+from pipemap.folders import load_image_set, read_info
+
+
+def _run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    try:
+        status = main(argv)
+    except SystemExit as exc:  # argparse errors
+        status = int(exc.code or 0)
+    out, err = capfd.readouterr()
+    return status, out, err
+
+
+def test_sim_writes_every_sweep_in_the_paper_layout(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "run"
+    status, out, err = _run(
+        ["sim", "--network", "paper", "--resolution", "64", "--save-sweeps", str(target)], capfd
+    )
+    assert status == 0, err
+    assert "13 visits of 7/7 nodes" in out and "complete" in out
+    folders = sorted(target.iterdir())
+    assert [f.name for f in folders] == [f"{i:04d}" for i in range(1, 14)]
+    nodes = [read_info(f)["node"] for f in folders]
+    assert nodes == list("SABACDCFCECAS")
+    info = read_info(folders[1])
+    assert float(info["y"]) == pytest.approx(1.5) and float(info["yaw"]) == pytest.approx(
+        math.pi / 2
+    )
+    assert load_image_set(folders[0]).images.shape == (6, 64, 64)
+
+
+def test_sim_refuses_to_overwrite_and_bad_input_is_one_line(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    full = tmp_path / "full"
+    full.mkdir()
+    (full / "keep.txt").write_text("precious")
+    cases = [
+        (["--network", "paper", "--save-sweeps", str(full)], str(full)),
+        (["--network", "nowhere", "--save-sweeps", str(tmp_path / "a")], "nowhere"),
+        (["--network", "paper", "--start", "Q", "--save-sweeps", str(tmp_path / "b")], "Q"),
+        (
+            [
+                "--network",
+                "paper",
+                "--condition",
+                "autonomous",
+                "--save-sweeps",
+                str(tmp_path / "c"),
+            ],
+            "autonomous",
+        ),
+        (["--network", "paper", "--resolution", "5", "--save-sweeps", str(tmp_path / "d")], "5"),
+    ]
+    for args, named in cases:
+        status, out, err = _run(["sim", *args], capfd)
+        assert status == 2, args
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("pipemap: error:") and named in lines[0], err
+        assert "Traceback" not in err
+    assert (full / "keep.txt").read_text() == "precious"
+
+
+def test_perfect_tour_localizes_without_false_merges(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "perfect"
+    status, _, err = _run(["sim", "--network", "paper", "--save-sweeps", str(target)], capfd)
+    assert status == 0, err
+    folders = sorted(target.iterdir())
+    sets = [load_image_set(f) for f in folders]
+    info = [read_info(f) for f in folders]
+    matches = pairwise_matches(sets)
+    checked_rotations = 0
+    for (i, j), m in matches.items():
+        if info[i]["node"] != info[j]["node"]:
+            # Different junctions are never taken for one another.
+            assert m.similarity < DEFAULT_THRESHOLD, (
+                info[i]["node"],
+                info[j]["node"],
+                m.similarity,
+            )
+            continue
+        turn = wrap_angle_rad(float(info[j]["yaw"]) - float(info[i]["yaw"]))
+        steps = turn / (math.pi / 3)
+        if abs(steps - round(steps)) < 1e-6:
+            # Headings a multiple of the camera step apart: the sweeps line up, the
+            # node is recognised and its rotation is the true heading change.
+            assert m.similarity > 0.9
+            assert abs(wrap_angle_rad(m.rotation_rad - turn)) < 0.01
+            checked_rotations += 1
+    assert checked_rotations == 4  # S, A: north-south; C: north-south and west-east
