@@ -9,6 +9,7 @@ from __future__ import annotations
 from sim.episode import Condition, Episode, Pose, SimConfig, Sweep, Visit
 from sim.network import Network, Node, NodeKind, Pipe, build_network
 from sim.plan import Tour, right_hand_tour, tour_edges
+from sim.robot import PlanarPose, Robot, RobotSpec
 from sim.world import CameraSpec, World
 
 __all__ = [
@@ -19,7 +20,10 @@ __all__ = [
     "Node",
     "NodeKind",
     "Pipe",
+    "PlanarPose",
     "Pose",
+    "Robot",
+    "RobotSpec",
     "SimConfig",
     "Sweep",
     "Tour",
