@@ -16,7 +16,7 @@ from typing import TextIO
 import cv2
 import numpy as np
 
-from pipemap.errors import InputError, SimError
+from pipemap.errors import InputError
 from pipemap.folders import write_image_set
 
 __all__ = ["run_sim"]
@@ -51,10 +51,6 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
         raise InputError(f"{target}: exists and is not an empty folder; refusing to overwrite")
     network = build_network(args.network, seed=args.seed)
     condition = Condition(args.condition)
-    if condition is Condition.AUTONOMOUS:
-        raise SimError(
-            "the autonomous condition needs the robot controller, which is not built yet"
-        )
     if args.start is not None and args.start not in network.labels:
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
@@ -62,6 +58,8 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
     camera = CameraSpec(resolution_px=args.resolution)
     config = SimConfig(condition=condition, seed=args.seed, camera=camera)
     target.mkdir(parents=True, exist_ok=True)
+    if condition is Condition.AUTONOMOUS:
+        return _run_autonomous(args, network, camera, target, out)
     with World(network, seed=args.seed) as world:
         episode = Episode(world, config, start=args.start)
         localizer = None
@@ -87,6 +85,26 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
         f"{distance:.2f} m, {sweeps} sweeps, {status}\n"
     )
     return 0 if tour.complete else 1
+
+
+def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  # type: ignore[no-untyped-def]
+    """The full exploration by the sensor-driven controller; sweeps are kept whatever ends it."""
+    from sim.controller import RunStatus, autonomous_run
+    from sim.world import World
+
+    with World(network, seed=args.seed) as world:
+        result = autonomous_run(world, camera, args.seed, start=args.start)
+    for index, sweep in enumerate(result.sweeps, start=1):
+        write_image_set(
+            target / f"{index:04d}", sweep.images, _info(sweep.start_pose, sweep.true_node)
+        )
+    visited = {s.true_node for s in result.sweeps} - {"?"}
+    out.write(
+        f"network {args.network}, condition autonomous: {len(result.sweeps)} sweeps at "
+        f"{len(visited)}/{len(network.nodes)} nodes, {result.distance_m:.2f} m in "
+        f"{result.duration_ns / 1e9:.0f} s simulated, {result.status.value}\n"
+    )
+    return 0 if result.status is RunStatus.FINISHED else 1
 
 
 def _localize_with_probes(localizer, visit, folder: Path, fov_rad: float) -> int:  # type: ignore[no-untyped-def]

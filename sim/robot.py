@@ -38,6 +38,8 @@ class RobotSpec:
 
     length_m: float = 0.12
     width_m: float = 0.07
+    #: Contact: a wall nearer to the centre line than half the body's width.
+    contact_clearance_m: float = 0.035
     wheel_diameter_m: float = 0.028
     track_m: float = 0.06
     encoder_ticks_per_rev: int = 360
@@ -156,8 +158,8 @@ class Robot:
         return float(self.world.ray_distances_m(np.tile(origin, (rays, 1)), dirs, 1.0).min())
 
     def in_contact(self) -> bool:
-        """True when a wall is nearer than half the robot's width: it has hit the pipe."""
-        return self.clearance_m() < self.spec.width_m / 2.0
+        """True when the robot touches a wall: clearance below ``contact_clearance_m``."""
+        return self.clearance_m() < self.spec.contact_clearance_m
 
     def _move(self, v_mps: float, omega_rps: float, dt_s: float) -> float:
         """Advance the true pose by one step of slipping wheels; returns the true yaw rate."""

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import functools
 import math
+import os
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,7 +31,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-import pybullet
 
 from pipemap.errors import SimError
 from sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
@@ -37,6 +38,25 @@ from sim.network import Network
 from sim.textures import node_texture, pipe_texture
 
 __all__ = ["CameraSpec", "World"]
+
+
+def _import_pybullet_quietly() -> Any:
+    """Import pybullet without its build-time banner, which its C code writes to fd 2:
+    a one-line error from the command line must stay one line."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        import pybullet as module
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(devnull)
+    return module
+
+
+pybullet = _import_pybullet_quietly()
 
 #: Distance at which the lamp lights a surface facing it at full albedo: the pipe
 #: wall beside the camera, so nothing nearby saturates and the far pipe fades out.

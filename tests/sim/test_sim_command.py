@@ -51,17 +51,6 @@ def test_sim_refuses_to_overwrite_and_bad_input_is_one_line(
         (["--network", "paper", "--save-sweeps", str(full)], str(full)),
         (["--network", "nowhere", "--save-sweeps", str(tmp_path / "a")], "nowhere"),
         (["--network", "paper", "--start", "Q", "--save-sweeps", str(tmp_path / "b")], "Q"),
-        (
-            [
-                "--network",
-                "paper",
-                "--condition",
-                "autonomous",
-                "--save-sweeps",
-                str(tmp_path / "c"),
-            ],
-            "autonomous",
-        ),
         (["--network", "paper", "--resolution", "5", "--save-sweeps", str(tmp_path / "d")], "5"),
     ]
     for args, named in cases:
@@ -102,3 +91,15 @@ def test_perfect_tour_localizes_without_false_merges(
             assert abs(wrap_angle_rad(m.rotation_rad - turn)) < 0.01
             checked_rotations += 1
     assert checked_rotations == 4  # S, A: north-south; C: north-south and west-east
+
+
+def test_autonomous_run_saves_a_sweep_at_every_visit(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "auto"
+    argv = ["sim", "--network", "paper", "--condition", "autonomous", "--resolution", "32"]
+    status, out, err = _run([*argv, "--save-sweeps", str(target)], capfd)
+    assert status == 0, err
+    assert "finished" in out and "7/7 nodes" in out
+    nodes = [read_info(f)["node"] for f in sorted(target.iterdir())]
+    assert nodes == list("SABACDCFCECAS")
