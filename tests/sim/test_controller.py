@@ -20,11 +20,11 @@ def paper_world():  # type: ignore[no-untyped-def]
 def test_paper_is_explored_from_every_start(paper_world, start: str) -> None:  # type: ignore[no-untyped-def]
     result = autonomous_run(paper_world, TINY, seed=1, start=start)
     assert result.status is RunStatus.FINISHED
-    # Every sweep is taken within 10 cm of a node centre, in the right-hand tour's order:
+    # Every sweep is taken within 15 cm of a node centre, in the right-hand tour's order:
     # every node and every pipe is visited, and the robot ends where it started.
     planned = [v.node for v in right_hand_tour(paper_world.network, start).visits]
     assert [s.true_node for s in result.sweeps] == planned
-    assert result.distance_m == pytest.approx(13.9, abs=0.3)
+    assert result.distance_m == pytest.approx(13.9, abs=0.4)
 
 
 def test_same_seed_same_sensor_streams(paper_world) -> None:  # type: ignore[no-untyped-def]
