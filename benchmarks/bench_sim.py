@@ -4,8 +4,8 @@ Prints, pinned to one core: the time to build the ``paper`` world (meshes, textu
 collision), the render time per image at 400x400 and 800x800 (TinyRenderer plus
 lighting; median of 12 views from the junction centres), and the wall time of a
 complete ``paper`` tour in the ``perfect`` condition at 400x400 (13 sweeps of 6
-images). The real-time factor of an autonomous exploration needs the robot
-controller, which is not built yet.
+images), and a full autonomous ``paper`` exploration at 400x400 from S with its
+real-time factor (simulated seconds per wall second).
 
 Usage: ``python benchmarks/bench_sim.py``.
 """
@@ -29,6 +29,7 @@ cv2.setNumThreads(1)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sim import CameraSpec, Condition, Episode, SimConfig, World, build_network  # noqa: E402
+from sim.controller import autonomous_run  # noqa: E402
 
 
 def main() -> int:
@@ -53,6 +54,15 @@ def main() -> int:
     tour = time.perf_counter() - t0
     print(f"paper tour, perfect condition, 400x400: {len(visits)} sweeps in {tour:.1f} s "
           f"({tour / (6 * len(visits)) * 1000:.0f} ms per image)")
+    t0 = time.perf_counter()
+    result = autonomous_run(world, CameraSpec(resolution_px=400), seed=0)
+    wall = time.perf_counter() - t0
+    simulated = result.duration_ns / 1e9
+    print(
+        f"paper autonomous exploration, 400x400: {result.status.value}, {len(result.sweeps)} "
+        f"sweeps, {result.distance_m:.1f} m, {simulated:.0f} s simulated in {wall:.1f} s wall: "
+        f"{simulated / wall:.0f}x real time"
+    )
     world.close()
     return 0
 
