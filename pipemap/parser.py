@@ -46,6 +46,7 @@ _threshold = _checked(
 )
 _positive_int = _checked(int, lambda v: v >= 1, "must be at least 1")
 _seed = _checked(int, lambda v: 0 <= v < 2**63, "seed must be in [0, 2^63)")
+_images = _checked(int, lambda v: 2 <= v <= 72, "images per sweep must be 2..72")
 _resolution = _checked(int, lambda v: 16 <= v <= 4096, "resolution must be 16..4096 px")
 _fraction = _checked(float, lambda v: 0.0 < v <= 1.0, "must be in (0, 1]")
 _fov_deg = _checked(float, lambda v: 0.0 < v < 360.0, "field of view must be in (0, 360) degrees")
@@ -131,6 +132,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="placement at junctions, as in the paper (default perfect)",
     )
     p_sim.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
+    p_sim.add_argument(
+        "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
+    )
     p_sim.add_argument("--save-sweeps", required=True, metavar="DIR", help="new or empty folder")
     return parser
 

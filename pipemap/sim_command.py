@@ -56,7 +56,9 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
         )
     camera = CameraSpec(resolution_px=args.resolution)
-    config = SimConfig(condition=condition, seed=args.seed, camera=camera)
+    config = SimConfig(
+        condition=condition, seed=args.seed, camera=camera, images_per_sweep=args.images
+    )
     target.mkdir(parents=True, exist_ok=True)
     if condition is Condition.AUTONOMOUS:
         return _run_autonomous(args, network, camera, target, out)
@@ -89,11 +91,12 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
 
 def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  # type: ignore[no-untyped-def]
     """The full exploration by the sensor-driven controller; sweeps are kept whatever ends it."""
-    from sim.controller import RunStatus, autonomous_run
+    from sim.controller import ExplorerConfig, RunStatus, autonomous_run
     from sim.world import World
 
     with World(network, seed=args.seed) as world:
-        result = autonomous_run(world, camera, args.seed, start=args.start)
+        config = ExplorerConfig(images_per_sweep=args.images)
+        result = autonomous_run(world, camera, args.seed, start=args.start, config=config)
     for index, sweep in enumerate(result.sweeps, start=1):
         write_image_set(
             target / f"{index:04d}", sweep.images, _info(sweep.start_pose, sweep.true_node)

@@ -103,3 +103,16 @@ def test_autonomous_run_saves_a_sweep_at_every_visit(
     assert "finished" in out and "7/7 nodes" in out
     nodes = [read_info(f)["node"] for f in sorted(target.iterdir())]
     assert nodes == list("SABACDCFCECAS")
+
+
+def test_images_per_sweep_is_configurable(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    # The paper's Figure 6 compares 6, 9, 18 and 36 images per sweep.
+    target = tmp_path / "nine"
+    argv = ["sim", "--network", "paper", "--resolution", "32", "--images", "9"]
+    status, _, err = _run([*argv, "--save-sweeps", str(target)], capfd)
+    assert status == 0, err
+    assert load_image_set(sorted(target.iterdir())[0]).count == 9
+    status, _, err = _run([*argv[:-1], "1", "--save-sweeps", str(tmp_path / "one")], capfd)
+    assert status == 2 and "images per sweep" in err
