@@ -60,6 +60,9 @@ class ExplorerConfig:
     images_per_sweep: int = 6
     camera_height_m: float = 0.05
     start_radius_m: float = 0.5
+    #: Odometry drifts with distance: the start is looked for this much further per
+    #: metre driven, and only at a node with as many pipes as the start has.
+    drift_per_m: float = 0.04
     #: Share of the estimated distance to a node centre driven before the scan that
     #: re-centres: short of it, so that a misjudged junction does not end at a wall.
     approach_fraction: float = 0.8
@@ -302,7 +305,11 @@ class Explorer:
             if first:
                 returns_needed = max(1, len(exits))
                 first = False
-            elif float(np.linalg.norm(self._xy_est - start_xy)) < c.start_radius_m:
+            elif (
+                len(exits) == returns_needed
+                and float(np.linalg.norm(self._xy_est - start_xy))
+                < c.start_radius_m + c.drift_per_m * self._result.distance_m
+            ):
                 returns += 1
                 if returns_needed is not None and returns >= returns_needed:
                     self._event("back at the start")

@@ -116,3 +116,25 @@ def test_images_per_sweep_is_configurable(
     assert load_image_set(sorted(target.iterdir())[0]).count == 9
     status, _, err = _run([*argv[:-1], "1", "--save-sweeps", str(tmp_path / "one")], capfd)
     assert status == 2 and "images per sweep" in err
+
+
+def test_a_run_that_misses_nodes_is_not_reported_finished(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The robot may believe it is back at the start when it is not; the simulator knows.
+    import numpy as np
+
+    import sim.controller
+    from sim.controller import ExplorationResult, RunStatus
+    from sim.episode import Pose, Sweep
+
+    def one_sweep_run(world, camera, seed, start=None, config=None):  # type: ignore[no-untyped-def]
+        sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8), Pose(0.0, 0.0, 0.05), "S")
+        return ExplorationResult(RunStatus.FINISHED, sweeps=[sweep], distance_m=1.0)
+
+    monkeypatch.setattr(sim.controller, "autonomous_run", one_sweep_run)
+    argv = ["sim", "--network", "paper", "--condition", "autonomous", "--resolution", "32"]
+    status, out, _ = _run([*argv, "--save-sweeps", str(tmp_path / "early")], capfd)
+    assert status == 1
+    assert "1/7 nodes" in out and "stopped early" in out
+    assert (tmp_path / "early" / "0001" / "info.txt").is_file()  # what was produced is kept
