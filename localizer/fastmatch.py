@@ -81,6 +81,8 @@ class PreparedSet:
     count: int
     width_px: int
     fov_rad: float
+    #: The set's camera angle at its first image (see :class:`ImageSet`).
+    camera_angle_rad: float
     shape_key: tuple[float, ...]
     #: Screening: conj(rfft) of each zero-mean template row, (F, N, R) complex64.
     template_rows: np.ndarray
@@ -135,6 +137,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         count=n,
         width_px=image_set.width,
         fov_rad=image_set.fov_rad,
+        camera_angle_rad=image_set.camera_angle_rad,
         shape_key=(
             *image_set.images.shape,
             image_set.fov_rad,
@@ -459,7 +462,11 @@ class FastMatcher:
                     peak_ncc[j, (j + k) % n] = values[b]
                     peak_dx[j, (j + k) % n] = columns[b] * (fine.full_width_px / fine.width)
             matches[i] = best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
-        return matches
+        # Rotations between the robots' headings, not between the sweeps' cameras.
+        return [
+            m.turned(query.camera_angle_rad - known.camera_angle_rad)
+            for m, known in zip(matches, self._sets, strict=True)
+        ]
 
 
 def _screened_matches(

@@ -29,11 +29,17 @@ class ImageSet:
     ``images`` has shape ``(N, height, width)``, any real dtype; it is copied into a
     read-only float32 array. ``fov_rad`` is the camera's horizontal field of view and
     ``keep_top_fraction`` the part of each image, from the top, used for matching.
+
+    ``camera_angle_rad`` is where the camera pointed for the first image, relative to
+    the robot's heading (counter-clockwise positive; 0 in the paper, whose sweeps
+    start straight ahead). Rotations between sets are reported between the robots'
+    headings, so sets swept from different start angles compare correctly.
     """
 
     images: np.ndarray
     fov_rad: float = DEFAULT_FOV_RAD
     keep_top_fraction: float = DEFAULT_KEEP_TOP_FRACTION
+    camera_angle_rad: float = 0.0
 
     def __post_init__(self) -> None:
         arr = np.asarray(self.images)
@@ -52,6 +58,8 @@ class ImageSet:
             raise LocalizerError(
                 f"keep_top_fraction must be in (0, 1], got {self.keep_top_fraction}"
             )
+        if not math.isfinite(self.camera_angle_rad):
+            raise LocalizerError(f"camera_angle_rad must be finite, got {self.camera_angle_rad}")
         if int(round(h * self.keep_top_fraction)) < 2:
             raise LocalizerError(
                 f"keep_top_fraction {self.keep_top_fraction} keeps fewer than 2 rows of {h}"
@@ -66,6 +74,7 @@ class ImageSet:
         images: Sequence[np.ndarray],
         fov_rad: float = DEFAULT_FOV_RAD,
         keep_top_fraction: float = DEFAULT_KEEP_TOP_FRACTION,
+        camera_angle_rad: float = 0.0,
     ) -> ImageSet:
         """Build a set from a sequence of equally sized 2-D grayscale images."""
         if len(images) == 0:
@@ -73,7 +82,8 @@ class ImageSet:
         shapes = {np.shape(im) for im in images}
         if len(shapes) != 1:
             raise LocalizerError(f"images of one set differ in size: {sorted(shapes)}")
-        return cls(np.stack([np.asarray(im) for im in images]), fov_rad, keep_top_fraction)
+        stacked = np.stack([np.asarray(im) for im in images])
+        return cls(stacked, fov_rad, keep_top_fraction, camera_angle_rad)
 
     @property
     def count(self) -> int:

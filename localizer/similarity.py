@@ -24,7 +24,7 @@ is validated against it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.signal import fftconvolve
@@ -75,6 +75,21 @@ class SetMatch:
     rotation_rad: float
     rotation_pinhole_rad: float
     refined: bool = True
+
+    def turned(self, angle_rad: float) -> SetMatch:
+        """The same match with both rotation estimates turned by ``angle_rad``.
+
+        Used to go from the rotation between two sweeps' cameras to the rotation
+        between the robots' headings, when the sweeps started at different camera
+        angles: add ``a.camera_angle_rad - b.camera_angle_rad``.
+        """
+        if angle_rad == 0.0:
+            return self
+        return replace(
+            self,
+            rotation_rad=wrap_angle_rad(self.rotation_rad + angle_rad),
+            rotation_pinhole_rad=wrap_angle_rad(self.rotation_pinhole_rad + angle_rad),
+        )
 
 
 def wrap_angle_rad(angle_rad: float) -> float:
@@ -205,4 +220,5 @@ def reference_match(a: ImageSet, b: ImageSet) -> SetMatch:
             peak = pair_peak(ca[j], cb[m])
             peak_ncc[j, m] = peak.ncc
             peak_dx[j, m] = peak.dx_px
-    return best_offset(peak_ncc, peak_dx, a.fov_rad, a.width)
+    match = best_offset(peak_ncc, peak_dx, a.fov_rad, a.width)
+    return match.turned(a.camera_angle_rad - b.camera_angle_rad)

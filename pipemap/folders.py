@@ -3,10 +3,16 @@
 Reading files is the application's job, not the localizer's: this module turns a
 folder into a :class:`localizer.ImageSet` and names the offending path in every
 error it raises.
+
+``info.txt`` holds ground truth (the camera pose, the true node) and is never read
+into an image set. What the robot itself knows about a sweep goes in an optional
+``sweep.txt``: ``camera_angle: A``, the camera's angle at the first image relative
+to the robot's heading in radians (0, straight ahead, when the file is absent).
 """
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -82,12 +88,37 @@ def load_image_set(
                 f"{images[0].shape[1]}x{images[0].shape[0]}"
             )
         images.append(image)
-    kwargs: dict[str, float] = {}
+    kwargs: dict[str, float] = {"camera_angle_rad": _camera_angle(path)}
     if fov_rad is not None:
         kwargs["fov_rad"] = fov_rad
     if keep_top_fraction is not None:
         kwargs["keep_top_fraction"] = keep_top_fraction
     return ImageSet(np.stack(images), **kwargs)
+
+
+def _camera_angle(folder: Path) -> float:
+    """``camera_angle`` from the folder's ``sweep.txt``; 0.0 without one."""
+    path = folder / "sweep.txt"
+    if not path.is_file():
+        return 0.0
+    values = _key_values(path)
+    text = values.get("camera_angle", "0")
+    try:
+        angle = float(text)
+    except ValueError:
+        raise InputError(f"{path}: camera_angle {text!r} is not a number") from None
+    if not math.isfinite(angle):
+        raise InputError(f"{path}: camera_angle {text!r} is not finite")
+    return angle
+
+
+def _key_values(path: Path) -> dict[str, str]:
+    values: dict[str, str] = {}
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        key, sep, value = line.partition(":")
+        if sep and value.strip():
+            values[key.strip()] = value.strip()
+    return values
 
 
 def load_image_sets(
@@ -115,21 +146,17 @@ def read_info(folder: str | Path) -> dict[str, str]:
     Used for ground truth by tests and tools; the localizer never sees it.
     """
     path = Path(folder) / "info.txt"
-    if not path.is_file():
-        return {}
-    info: dict[str, str] = {}
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
-        key, sep, value = line.partition(":")
-        if sep and value.strip():
-            info[key.strip()] = value.strip()
-    return info
+    return _key_values(path) if path.is_file() else {}
 
 
-def write_image_set(folder: str | Path, images: np.ndarray, info: dict[str, str]) -> None:
+def write_image_set(
+    folder: str | Path, images: np.ndarray, info: dict[str, str], camera_angle_rad: float = 0.0
+) -> None:
     """Write one sweep in the paper's layout: ``camera_image1..N.png`` and ``info.txt``.
 
     ``images`` is (N, H, W, 3) RGB or (N, H, W) gray, uint8. ``info`` lines are written
-    as ``key: value`` in the given order. The folder must not exist yet.
+    as ``key: value`` in the given order. A non-zero camera angle at the first image
+    goes to ``sweep.txt``. The folder must not exist yet.
     """
     path = Path(folder)
     path.mkdir(parents=True, exist_ok=False)
@@ -139,3 +166,6 @@ def write_image_set(folder: str | Path, images: np.ndarray, info: dict[str, str]
             raise InputError(f"{path}: cannot write camera_image{i}.png")
     lines = [f"{key}: {value}" for key, value in info.items()]
     (path / "info.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    if camera_angle_rad != 0.0:
+        text = f"camera_angle: {camera_angle_rad!r}\n"
+        (path / "sweep.txt").write_text(text, encoding="utf-8")

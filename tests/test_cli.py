@@ -125,6 +125,29 @@ def test_missing_folder(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> No
     assert_one_error(status, out, err, str(missing))
 
 
+@pytest.mark.parametrize("value", ["east", "nan", "inf"])
+def test_bad_camera_angle_in_sweep_txt(
+    value: str, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    good = make_set(tmp_path, "a", seed=1)
+    bad = make_set(tmp_path, "b", seed=2)
+    (bad / "sweep.txt").write_text(f"camera_angle: {value}\n")
+    status, out, err = run(["match", str(good), str(bad)], capfd)
+    assert_one_error(status, out, err, str(bad / "sweep.txt"), "camera_angle")
+
+
+def test_sweep_txt_sets_the_camera_angle_and_info_txt_is_not_read(tmp_path: Path) -> None:
+    from pipemap.folders import load_image_set, read_info, write_image_set
+
+    images = np.stack(textures(4))
+    write_image_set(tmp_path / "turned", images, {"node": "A", "yaw": "1.0"}, 0.25)
+    write_image_set(tmp_path / "ahead", images, {"node": "A", "yaw": "1.0"})
+    assert load_image_set(tmp_path / "turned").camera_angle_rad == 0.25
+    assert load_image_set(tmp_path / "ahead").camera_angle_rad == 0.0
+    assert not (tmp_path / "ahead" / "sweep.txt").exists()
+    assert read_info(tmp_path / "turned") == {"node": "A", "yaw": "1.0"}
+
+
 def test_path_is_a_file(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     good = make_set(tmp_path, "a", seed=1)
     a_file = tmp_path / "notes.txt"

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from localizer import FastConfig, FastMatcher, ImageSet, pairwise_matches, wrap_angle_rad
 from localizer.fastmatch import prepare
+from localizer.similarity import reference_match
 from pipemap.errors import LocalizerError
 from tests.localizer.synthetic import expected_rotation_rad, panorama, sweep
 
@@ -156,3 +157,42 @@ def test_screened_matches_equal_best_offset_per_junction() -> None:
         assert got[i].rotation_rad == pytest.approx(want.rotation_rad, abs=1e-12)
         assert got[i].rotation_pinhole_rad == pytest.approx(want.rotation_pinhole_rad, abs=1e-12)
         assert not got[i].refined
+
+
+@settings(max_examples=4, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    turn=st.integers(-700, 700),
+    angle_a=st.floats(-0.6, 0.6),
+    angle_b=st.floats(-0.6, 0.6),
+)
+def test_camera_angles_turn_the_rotation_into_a_heading_change(
+    seed: int, turn: int, angle_a: float, angle_b: float
+) -> None:
+    # The cameras turned by `turn` columns; the robots' headings differ by that less
+    # the difference of the cameras' angles to their headings.
+    pano = panorama(seed)
+    plain_a, plain_b = sweep(pano), sweep(pano, turn=turn)
+    a = ImageSet(plain_a.images, fov_rad=plain_a.fov_rad, camera_angle_rad=angle_a)
+    b = ImageSet(plain_b.images, fov_rad=plain_b.fov_rad, camera_angle_rad=angle_b)
+    expected = wrap_angle_rad(expected_rotation_rad(turn, pano.shape[1]) + angle_a - angle_b)
+    plain = _match(plain_a, plain_b)
+    for match in (_match(a, b), reference_match(a, b)):
+        assert abs(wrap_angle_rad(match.rotation_rad - expected)) < ROTATION_TOL_RAD
+    # The images alone decide the match; the angles only relabel both rotations. (The
+    # synthetic panorama is cylindrical, so the pinhole estimate is not checked here.)
+    turned = _match(a, b)
+    assert turned.similarity == plain.similarity
+    assert turned.rotation_pinhole_rad == pytest.approx(
+        wrap_angle_rad(plain.rotation_pinhole_rad + angle_a - angle_b), abs=1e-9
+    )
+
+
+def test_turned_match_keeps_everything_but_the_rotations() -> None:
+    a = sweep(panorama(3))
+    match = reference_match(a, a)
+    turned = match.turned(3.0)
+    assert turned.similarity == match.similarity and turned.image_shift == match.image_shift
+    assert turned.rotation_rad == pytest.approx(wrap_angle_rad(match.rotation_rad + 3.0))
+    assert -math.pi < turned.rotation_pinhole_rad <= math.pi
+    assert match.turned(0.0) is match

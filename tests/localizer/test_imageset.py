@@ -260,3 +260,15 @@ def test_cropped_with_full_fraction_is_everything() -> None:
     s = ImageSet(source, keep_top_fraction=1.0)
     assert s.cropped().shape == (2, 9, 11)
     np.testing.assert_array_equal(s.cropped(), s.images)
+
+
+@pytest.mark.parametrize("angle", [math.nan, math.inf, -math.inf])
+def test_camera_angle_must_be_finite(angle: float) -> None:
+    with pytest.raises(LocalizerError, match="camera_angle_rad"):
+        ImageSet(np.zeros((6, 8, 8)), camera_angle_rad=angle)
+
+
+def test_camera_angle_defaults_to_straight_ahead_and_is_kept() -> None:
+    images = [np.zeros((8, 8))] * 6
+    assert ImageSet.from_images(images).camera_angle_rad == 0.0
+    assert ImageSet.from_images(images, camera_angle_rad=0.5).camera_angle_rad == 0.5
