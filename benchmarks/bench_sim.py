@@ -38,7 +38,8 @@ def main() -> int:
     world = World(network, seed=0)
     build = time.perf_counter() - start
     print(f"# paper network: {len(network.nodes)} nodes, {len(network.pipes)} pipes, one core")
-    print(f"world build (meshes, textures, collision): {build:.2f} s, {world.triangle_count} triangles")
+    triangles = world.triangle_count
+    print(f"world build (meshes, textures, collision): {build:.2f} s, {triangles} triangles")
     for resolution in (400, 800):
         camera = CameraSpec(resolution_px=resolution)
         times = []
@@ -48,12 +49,15 @@ def main() -> int:
                 t0 = time.perf_counter()
                 world.render((node.x_m + 1e-4, node.y_m + 1e-4, 0.05), j * math.pi / 3, camera)
                 times.append(time.perf_counter() - t0)
-        print(f"render per image at {resolution}x{resolution}: {statistics.median(times) * 1000:.0f} ms")
+        median_ms = statistics.median(times) * 1000
+        print(f"render per image at {resolution}x{resolution}: {median_ms:.0f} ms")
     t0 = time.perf_counter()
     visits = list(Episode(world, SimConfig(Condition.PERFECT)).visits())
     tour = time.perf_counter() - t0
-    print(f"paper tour, perfect condition, 400x400: {len(visits)} sweeps in {tour:.1f} s "
-          f"({tour / (6 * len(visits)) * 1000:.0f} ms per image)")
+    print(
+        f"paper tour, perfect condition, 400x400: {len(visits)} sweeps in {tour:.1f} s "
+        f"({tour / (6 * len(visits)) * 1000:.0f} ms per image)"
+    )
     t0 = time.perf_counter()
     result = autonomous_run(world, CameraSpec(resolution_px=400), seed=0)
     wall = time.perf_counter() - t0

@@ -19,8 +19,13 @@ sys.path.insert(0, str(ROOT))
 
 from sim import CameraSpec, World, build_network  # noqa: E402
 
-ROWS = [("paper", "S", "entry"), ("paper", "A", "T junction"), ("paper", "B", "dead end"),
-        ("paper", "C", "cross junction"), ("grid:2x2", "r1c1", "corner")]
+ROWS = [
+    ("paper", "S", "entry"),
+    ("paper", "A", "T junction"),
+    ("paper", "B", "dead end"),
+    ("paper", "C", "cross junction"),
+    ("grid:2x2", "r1c1", "corner"),
+]
 
 
 def main() -> int:
@@ -34,11 +39,18 @@ def main() -> int:
         node = world.network.node(label)
         heading = next(iter(world.network.pipe_headings(label).values())) + math.pi
         images = [
-            cv2.resize(world.render((node.x_m + 1e-4, node.y_m + 1e-4, 0.05), heading - j * math.pi / 3, camera), (200, 200))
+            cv2.resize(
+                world.render(
+                    (node.x_m + 1e-4, node.y_m + 1e-4, 0.05), heading - j * math.pi / 3, camera
+                ),
+                (200, 200),
+            )
             for j in range(6)
         ]
         strip = np.hstack(images)
-        cv2.putText(strip, f"{kind} ({spec} {label})", (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 2)
+        white = (255, 255, 255)
+        caption = f"{kind} ({spec} {label})"
+        cv2.putText(strip, caption, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, white, 2)
         strips.append(strip)
     for world in worlds.values():
         world.close()
