@@ -135,6 +135,13 @@ def build_parser() -> argparse.ArgumentParser:
     p_sim.add_argument(
         "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
     )
+    p_sim.add_argument(
+        "--align-sweeps",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="start each sweep at the multiple of 360/N degrees nearest the robot's heading "
+        "estimate (default); --no-align-sweeps starts straight ahead, as in the paper",
+    )
     p_sim.add_argument("--save-sweeps", required=True, metavar="DIR", help="new or empty folder")
     return parser
 

@@ -2,9 +2,11 @@
 
 ``DIR/0001``, ``DIR/0002``, ... in visit order, each ``camera_image1..N.png`` plus
 ``info.txt`` with the camera pose at the sweep start and the true node, so that
-``pipemap map DIR/*`` maps the run. In the ``active`` condition the localizer runs
-online and its probe sweeps go to ``DIR/NNNN/probes/<kind>/`` (inside the visit's
-folder, so they are not visits themselves).
+``pipemap map DIR/*`` maps the run. A sweep that did not start straight ahead has
+a ``sweep.txt`` with its camera angle (see :mod:`pipemap.folders`). In the
+``active`` condition the localizer runs online and its probe sweeps go to
+``DIR/NNNN/probes/<kind>/`` (inside the visit's folder, so they are not visits
+themselves).
 """
 
 from __future__ import annotations
@@ -32,12 +34,11 @@ def _info(pose: object, node: str) -> dict[str, str]:
     return info
 
 
-def _gray_set(images: np.ndarray, fov_rad: float):  # type: ignore[no-untyped-def]
+def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float):  # type: ignore[no-untyped-def]
     from localizer import ImageSet
 
-    return ImageSet(
-        np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images]), fov_rad=fov_rad
-    )
+    gray = np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images])
+    return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
 
 
 def run_sim(args: argparse.Namespace, out: TextIO) -> int:
@@ -57,7 +58,11 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
         )
     camera = CameraSpec(resolution_px=args.resolution)
     config = SimConfig(
-        condition=condition, seed=args.seed, camera=camera, images_per_sweep=args.images
+        condition=condition,
+        seed=args.seed,
+        camera=camera,
+        images_per_sweep=args.images,
+        align_sweeps=args.align_sweeps,
     )
     target.mkdir(parents=True, exist_ok=True)
     if condition is Condition.AUTONOMOUS:
@@ -72,7 +77,9 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
         sweeps = 0
         for visit in episode.visits():
             folder = target / f"{visit.index + 1:04d}"
-            write_image_set(folder, visit.sweep.images, _info(visit.pose, visit.node))
+            sweep = visit.sweep
+            info = _info(sweep.start_pose, visit.node)
+            write_image_set(folder, sweep.images, info, sweep.camera_angle_rad)
             sweeps += 1
             if localizer is not None:
                 sweeps += _localize_with_probes(localizer, visit, folder, camera.fov_rad)
@@ -95,12 +102,11 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  #
     from sim.world import World
 
     with World(network, seed=args.seed) as world:
-        config = ExplorerConfig(images_per_sweep=args.images)
+        config = ExplorerConfig(images_per_sweep=args.images, align_sweeps=args.align_sweeps)
         result = autonomous_run(world, camera, args.seed, start=args.start, config=config)
     for index, sweep in enumerate(result.sweeps, start=1):
-        write_image_set(
-            target / f"{index:04d}", sweep.images, _info(sweep.start_pose, sweep.true_node)
-        )
+        info = _info(sweep.start_pose, sweep.true_node)
+        write_image_set(target / f"{index:04d}", sweep.images, info, sweep.camera_angle_rad)
     visited = {s.true_node for s in result.sweeps} - {"?"}
     # The robot believes it is done; the simulator knows whether it covered the network.
     covered = len(visited) == len(network.nodes)
@@ -127,9 +133,11 @@ def _localize_with_probes(localizer, visit, folder: Path, fov_rad: float) -> int
                 folder / "probes" / request.kind.value,
                 sweep.images,
                 _info(sweep.start_pose, visit.node),
+                sweep.camera_angle_rad,
             )
             saved += 1
-            return _gray_set(sweep.images, fov_rad)
+            return _gray_set(sweep.images, fov_rad, sweep.camera_angle_rad)
 
-    localizer.localize(_gray_set(visit.sweep.images, fov_rad), _Probes())
+    first = visit.sweep
+    localizer.localize(_gray_set(first.images, fov_rad, first.camera_angle_rad), _Probes())
     return saved

@@ -10,9 +10,15 @@ The robot visits the nodes in the order of the right-most-branch rule
 * ``entrance``: placed at the node entrance and driven the radius to the centre
   with odometry error (a slipping, noisy drive).
 
-The camera faces the direction of travel when a sweep starts and turns clockwise
-(seen from above) by ``2*pi/N`` between images, the convention in which the
-paper's rotation estimate ``I*2pi/N + P*fov/W`` equals the heading change.
+The camera turns clockwise (seen from above) by ``2*pi/N`` between images, the
+convention in which the paper's rotation estimate ``I*2pi/N + P*fov/W`` equals the
+heading change. In the paper a sweep starts straight ahead. pipemap's robot, by
+default, starts it at the multiple of ``2*pi/N`` nearest its heading estimate
+(``align_sweeps``): two visits of a node then see along the same directions
+whatever pipe they arrived by, where junctions 90 degrees apart would leave
+6-image sweeps half a step out of line. The start angle relative to the heading is
+part of the sweep (``camera_angle_rad``), so rotations stay between headings. Placed
+by hand, the robot knows its heading exactly.
 The fully autonomous condition, driven by the sensor-based controller, is not
 part of this module.
 """
@@ -31,7 +37,7 @@ from sim.network import Network
 from sim.plan import right_hand_tour
 from sim.world import CameraSpec, World
 
-__all__ = ["Condition", "Episode", "Pose", "SimConfig", "Sweep", "Visit"]
+__all__ = ["Condition", "Episode", "Pose", "SimConfig", "Sweep", "Visit", "sweep_start_angle"]
 
 
 class Condition(enum.Enum):
@@ -68,6 +74,7 @@ class SimConfig:
     noise_offset_m: float = 0.03
     entrance_slip: float = 0.05
     texture_px: int = 512
+    align_sweeps: bool = True
 
     def __post_init__(self) -> None:
         if self.images_per_sweep < 1:
@@ -78,13 +85,26 @@ class SimConfig:
 
 @dataclass(frozen=True, eq=False)
 class Sweep:
-    """One camera sweep: N RGB images (N, H, W, 3) in sweep order, the pose at its start,
-    and the true node (ground truth, for scoring only)."""
+    """One camera sweep: N RGB images (N, H, W, 3) in sweep order, the camera's pose at
+    its first image and the true node (ground truth, for scoring only), and the
+    commanded camera angle of the first image relative to the robot's heading."""
 
     images: np.ndarray
     start_pose: Pose
     true_node: str
     probe: tuple[float, float, float] | None = None  # (yaw, forward, left) of a probe
+    camera_angle_rad: float = 0.0
+
+
+def sweep_start_angle(heading_estimate_rad: float, images: int, align: bool) -> float:
+    """Camera angle of a sweep's first image, relative to the robot's heading.
+
+    Aligned, it turns the first image to the multiple of ``2*pi/images`` nearest the
+    heading estimate; otherwise the sweep starts straight ahead, as in the paper.
+    """
+    if not align:
+        return 0.0
+    return -math.remainder(heading_estimate_rad, 2.0 * math.pi / images)
 
 
 class Visit:
@@ -106,7 +126,13 @@ class Visit:
         y = p.y_m + forward_m * math.sin(p.yaw_rad) + left_m * math.cos(p.yaw_rad)
         moved = Pose(x, y, p.z_m, p.roll_rad, p.pitch_rad, p.yaw_rad + yaw_rad)
         sweep = self._episode._sweep(self.node, moved)
-        return Sweep(sweep.images, moved, self.node, (yaw_rad, forward_m, left_m))
+        return Sweep(
+            sweep.images,
+            sweep.start_pose,
+            self.node,
+            (yaw_rad, forward_m, left_m),
+            sweep.camera_angle_rad,
+        )
 
 
 class Episode:
@@ -123,15 +149,18 @@ class Episode:
 
     def _sweep(self, node: str, pose: Pose) -> Sweep:
         n = self.config.images_per_sweep
+        angle = sweep_start_angle(pose.yaw_rad, n, self.config.align_sweeps)
+        first = pose.yaw_rad + angle
         # A hair off any ring of mesh vertices: TinyRenderer slows down 100x on one.
         eye = (pose.x_m + 1.3e-4, pose.y_m + 0.7e-4, pose.z_m)
         images = np.stack(
             [
-                self.world.render(eye, pose.yaw_rad - j * 2.0 * math.pi / n, self.config.camera)
+                self.world.render(eye, first - j * 2.0 * math.pi / n, self.config.camera)
                 for j in range(n)
             ]
         )
-        return Sweep(images, pose, node)
+        camera = Pose(pose.x_m, pose.y_m, pose.z_m, pose.roll_rad, pose.pitch_rad, first)
+        return Sweep(images, camera, node, camera_angle_rad=angle)
 
     def _arrival_heading(self, node: str, arrived_from: str | None, leave_to: str | None) -> float:
         headings = self.network.pipe_headings(node)

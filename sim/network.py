@@ -322,7 +322,10 @@ def _grid(rows: int, cols: int, spacing_m: float) -> Network:
 _MAX_ATTEMPTS = 2000
 #: Generated layouts keep wider margins than validation asks, so the walls clear.
 _GEN_CLEARANCE_DIAMETERS = 2.0
-_GEN_STRAIGHT_RAD = math.radians(175.0)
+#: Generated corners turn the pipe by at least 20 degrees. A gentler bend is a deflected
+#: pipe, not a junction: the robot's gyro cannot tell it from the follower's own weave
+#: (measured: every generated corner turning under 15 degrees went unnoticed).
+_GEN_STRAIGHT_RAD = math.radians(160.0)
 
 
 def _scatter(

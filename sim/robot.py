@@ -10,7 +10,9 @@ Sensors, each with noise and its own rate, all drawn from the run's generator:
 
 * three time-of-flight rangers at the front (front, front-left, front-right), one
   ``rayTestBatch`` per reading;
-* an IMU: yaw rate (with a constant bias), forward and lateral acceleration;
+* an IMU: yaw rate (with a constant bias), forward and lateral acceleration; the
+  rate is the mean over the sample period (the gyro integrates between samples, as
+  a MEMS gyro's filter does), so that short turns are not missed between samples;
 * two wheel encoders counting wheel rotation, which is not ground travel when a
   wheel slips: dead reckoning drifts as on the real robot.
 
@@ -123,6 +125,7 @@ class Robot:
         self._gyro_bias = float(rng.normal(0.0, self.spec.gyro_bias_std_rps))
         self._wheel_rad = [0.0, 0.0]  # cumulative wheel rotation, left and right
         self._speed_mps = 0.0
+        self._turned_rad = 0.0  # true yaw change since the last IMU sample
         self._due = {
             "range": self.spec.period_ns(self.spec.tof_rate_hz),
             "imu": self.spec.period_ns(self.spec.imu_rate_hz),
@@ -199,12 +202,17 @@ class Robot:
         while self.t_ns < end:
             dt = min(step, end - self.t_ns)
             w = self._move(v_mps, omega_rps, dt / NS_PER_S)
+            self._turned_rad += w * dt / NS_PER_S
             self.t_ns += dt
             if self.t_ns >= self._due["imu"]:
+                mean_rate = self._turned_rad / (step / NS_PER_S)
+                self._turned_rad = 0.0
                 readings.append(
                     ImuReading(
                         self.t_ns,
-                        w + self._gyro_bias + float(self._rng.normal(0.0, s.gyro_noise_rps)),
+                        mean_rate
+                        + self._gyro_bias
+                        + float(self._rng.normal(0.0, s.gyro_noise_rps)),
                         self._accel[0] + float(self._rng.normal(0.0, s.accel_noise_mps2)),
                         self._accel[1] + float(self._rng.normal(0.0, s.accel_noise_mps2)),
                     )

@@ -188,9 +188,12 @@ class World:
             directions = list(net.pipe_headings(node.label).values())
             chamber = chamber_mesh((node.x_m, node.y_m), directions, self.radius_m)
             if chamber is not None:
-                tid = self._texture(
-                    f"node-{node.label}", node_texture(nrng, texture_px, texture_px)
-                )
+                # Drawn for a 0.2 m sphere, so the chamber's stains and deposits come out
+                # twice as coarse as the pipes'. At the true scale the fine detail of the
+                # end caps washes out at 400 px: on the paper tour two different dead
+                # ends then scored 0.366, over the 0.36 threshold (0.339 as drawn).
+                texture = node_texture(nrng, texture_px, texture_px, radius_m=0.2)
+                tid = self._texture(f"node-{node.label}", texture)
                 self._add(chamber, tid)
 
     # -- sensing ----------------------------------------------------------------------

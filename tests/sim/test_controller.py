@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from sim import CameraSpec, World, build_network, right_hand_tour
 from sim.controller import ExplorerConfig, RunStatus, autonomous_run
+from sim.network import NodeKind
 
 TINY = CameraSpec(resolution_px=32)
 
@@ -25,6 +28,49 @@ def test_paper_is_explored_from_every_start(paper_world, start: str) -> None:  #
     planned = [v.node for v in right_hand_tour(paper_world.network, start).visits]
     assert [s.true_node for s in result.sweeps] == planned
     assert result.distance_m == pytest.approx(13.9, abs=0.4)
+
+
+def test_heading_estimate_holds_with_a_biased_gyro(paper_world) -> None:  # type: ignore[no-untyped-def]
+    # The gyro's bias (0.001 rad/s standard deviation) would turn the heading by up to
+    # 20 degrees over a run; measured whenever the robot stands still, it stays within
+    # 2 degrees, so sweeps aligned to the heading estimate line up between visits.
+    from sim.robot import RobotSpec
+
+    result = autonomous_run(paper_world, TINY, seed=3, start="S")
+    step = 2 * math.pi / 6
+    assert result.status is RunStatus.FINISHED and len(result.sweeps) == 13
+    for sweep in result.sweeps:
+        misalignment = math.remainder(sweep.start_pose.yaw_rad, step)
+        assert abs(misalignment) < math.radians(2.0)
+    assert RobotSpec().gyro_bias_std_rps >= 0.001
+
+
+def test_revisits_sweep_from_where_the_first_visit_did(paper_world) -> None:  # type: ignore[no-untyped-def]
+    # Dead ends and the far wall of a T: the front range fixes the place along the pipe.
+    result = autonomous_run(paper_world, TINY, seed=2, start="B")
+    network = paper_world.network
+    for sweep in result.sweeps:
+        node = network.node(sweep.true_node)
+        off = math.hypot(node.x_m - sweep.start_pose.x_m, node.y_m - sweep.start_pose.y_m)
+        limit = 0.03 if network.kind(node.label) is NodeKind.TEE else 0.01
+        assert off < limit, (sweep.true_node, off)
+
+
+@pytest.mark.parametrize(
+    "seed, bend",
+    [
+        (4, True),  # gentle corners, no opening to the side rays: found from the gyro
+        (5, False),  # a dead end 0.9 m from the start, as many pipes: not the start
+    ],
+)
+def test_random_trees_are_fully_explored(seed: int, bend: bool) -> None:
+    network = build_network("tree:10", seed=seed)
+    with World(network, seed=seed, texture_px=32) as world:
+        result = autonomous_run(world, TINY, seed=seed)
+    assert result.status is RunStatus.FINISHED
+    assert {s.true_node for s in result.sweeps} == set(network.labels)
+    assert any(text == "bend passed" for _, text in result.events) == bend
+    assert result.sweeps[-1].true_node == "S"
 
 
 def test_same_seed_same_sensor_streams(paper_world) -> None:  # type: ignore[no-untyped-def]

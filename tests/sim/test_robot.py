@@ -111,3 +111,17 @@ def test_bad_settings_are_refused(world) -> None:  # type: ignore[no-untyped-def
     robot = Robot(world, PlanarPose(0.0, 0.3, 0.0), np.random.default_rng(0))
     with pytest.raises(SimError):
         robot.drive(0.1, 0.0, 0)
+
+
+def test_gyro_reports_short_turns_between_its_samples(world) -> None:  # type: ignore[no-untyped-def]
+    # Many turns shorter than the 10 ms IMU period: the gyro's mean rate over each
+    # period still integrates to the whole turn, as an integrating MEMS gyro does.
+    robot = Robot(world, PlanarPose(0.0, 1.5, 0.0), np.random.default_rng(0), _quiet())
+    readings = []
+    for _ in range(100):
+        readings += robot.drive(0.0, 1.0, 3_000_000)  # 3 ms at 1 rad/s
+        readings += robot.drive(0.0, 0.0, 4_000_000)
+    readings += robot.drive(0.0, 0.0, 10_000_000)  # let the last period end
+    gyro = [r.yaw_rate_rps for r in readings if isinstance(r, ImuReading)]
+    assert sum(gyro) * 0.01 == pytest.approx(0.3, abs=1e-9)
+    assert robot.pose.yaw_rad == pytest.approx(0.3, abs=1e-9)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -35,10 +36,27 @@ def test_sim_writes_every_sweep_in_the_paper_layout(
     nodes = [read_info(f)["node"] for f in folders]
     assert nodes == list("SABACDCFCECAS")
     info = read_info(folders[1])
-    assert float(info["y"]) == pytest.approx(1.5) and float(info["yaw"]) == pytest.approx(
-        math.pi / 2
-    )
+    # At A, facing north (pi/2): the sweep starts at the nearest multiple of 60 degrees,
+    # 120 (a tie with 60, broken as math.remainder does); info.txt has the camera's
+    # yaw, sweep.txt the camera's angle to the heading, which the localizer reads.
+    assert float(info["y"]) == pytest.approx(1.5)
+    assert float(info["yaw"]) == pytest.approx(2 * math.pi / 3)
+    first = load_image_set(folders[1])
+    assert first.camera_angle_rad == pytest.approx(math.pi / 6)
     assert load_image_set(folders[0]).images.shape == (6, 64, 64)
+
+
+def test_no_align_sweeps_starts_straight_ahead_as_in_the_paper(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "paper-style"
+    argv = ["sim", "--network", "paper", "--resolution", "32", "--no-align-sweeps"]
+    status, _, err = _run([*argv, "--save-sweeps", str(target)], capfd)
+    assert status == 0, err
+    folders = sorted(target.iterdir())
+    assert float(read_info(folders[1])["yaw"]) == pytest.approx(math.pi / 2)
+    assert not any((f / "sweep.txt").exists() for f in folders)
+    assert all(load_image_set(f).camera_angle_rad == 0.0 for f in folders)
 
 
 def test_sim_refuses_to_overwrite_and_bad_input_is_one_line(
@@ -62,7 +80,43 @@ def test_sim_refuses_to_overwrite_and_bad_input_is_one_line(
     assert (full / "keep.txt").read_text() == "precious"
 
 
-def test_perfect_tour_localizes_without_false_merges(
+def _heading(folder: Path) -> float:
+    """The robot's true heading at a sweep: the camera's yaw less its angle to the heading."""
+    return float(read_info(folder)["yaw"]) - load_image_set(folder).camera_angle_rad
+
+
+def test_every_decision_on_the_perfect_paper_tour_is_right(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    # In the noise condition (3 cm off centre) this does not hold on every seed: see
+    # the README's simulator section for the measured rates.
+    condition = "perfect"
+    target = tmp_path / condition
+    argv = ["sim", "--network", "paper", "--condition", condition]
+    status, _, err = _run([*argv, "--save-sweeps", str(target)], capfd)
+    assert status == 0, err
+    folders = sorted(target.iterdir())
+    status, out, err = _run(["map", "--json", *map(str, folders)], capfd)
+    assert status == 0, err
+    visits = json.loads(out)["visits"]
+    truth = [read_info(f)["node"] for f in folders]
+    first_visit: dict[str, int] = {}
+    for i, (visit, node) in enumerate(zip(visits, truth, strict=True)):
+        if node in first_visit:
+            # A revisit is recognised as the node it is, and the rotation between the
+            # two visits is the true heading change (the candidate's heading less the
+            # query's: the query is set A of Algorithm 2).
+            assert visit["known"], (i, node, visit["similarity"])
+            assert visit["node"] == visits[first_visit[node]]["node"]
+            turn = wrap_angle_rad(_heading(folders[first_visit[node]]) - _heading(folders[i]))
+            assert abs(wrap_angle_rad(visit["rotation_pinhole_rad"] - turn)) < 0.01
+            assert abs(wrap_angle_rad(visit["rotation_rad"] - turn)) < 0.01
+        else:
+            assert not visit["known"], (i, node, visit["similarity"])
+            first_visit[node] = i
+
+
+def test_perfect_tour_separates_same_from_different_junctions(
     tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
     target = tmp_path / "perfect"
@@ -70,27 +124,16 @@ def test_perfect_tour_localizes_without_false_merges(
     assert status == 0, err
     folders = sorted(target.iterdir())
     sets = [load_image_set(f) for f in folders]
-    info = [read_info(f) for f in folders]
-    matches = pairwise_matches(sets)
-    checked_rotations = 0
-    for (i, j), m in matches.items():
-        if info[i]["node"] != info[j]["node"]:
-            # Different junctions are never taken for one another.
-            assert m.similarity < DEFAULT_THRESHOLD, (
-                info[i]["node"],
-                info[j]["node"],
-                m.similarity,
-            )
-            continue
-        turn = wrap_angle_rad(float(info[j]["yaw"]) - float(info[i]["yaw"]))
-        steps = turn / (math.pi / 3)
-        if abs(steps - round(steps)) < 1e-6:
-            # Headings a multiple of the camera step apart: the sweeps line up, the
-            # node is recognised and its rotation is the true heading change.
-            assert m.similarity > 0.9
+    nodes = [read_info(f)["node"] for f in folders]
+    for (i, j), m in pairwise_matches(sets).items():
+        if nodes[i] != nodes[j]:
+            assert m.similarity < DEFAULT_THRESHOLD, (nodes[i], nodes[j], m.similarity)
+        else:
+            # Aligned sweeps from the same spot: whatever pipe the robot came by, it
+            # sees along the same directions, so the images agree almost exactly.
+            assert m.similarity > 0.9, (nodes[i], m.similarity)
+            turn = wrap_angle_rad(_heading(folders[j]) - _heading(folders[i]))
             assert abs(wrap_angle_rad(m.rotation_rad - turn)) < 0.01
-            checked_rotations += 1
-    assert checked_rotations == 4  # S, A: north-south; C: north-south and west-east
 
 
 def test_autonomous_run_saves_a_sweep_at_every_visit(

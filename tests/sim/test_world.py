@@ -93,7 +93,12 @@ def test_probes_only_in_the_active_condition(paper_world) -> None:  # type: igno
     visit = list(active.visits())[1]
     moved = visit.probe(0.5, 0.03, 0.0)
     assert moved.probe == (0.5, 0.03, 0.0)
-    assert moved.start_pose.yaw_rad == pytest.approx(visit.pose.yaw_rad + 0.5)
+    # The camera starts at its angle to the turned robot's heading.
+    turned = visit.pose.yaw_rad + 0.5
+    assert moved.start_pose.yaw_rad == pytest.approx(turned + moved.camera_angle_rad)
+    step = 2.0 * math.pi / 6
+    assert abs(moved.camera_angle_rad) <= step / 2 + 1e-12
+    assert math.remainder(moved.start_pose.yaw_rad, step) == pytest.approx(0.0, abs=1e-9)
     assert math.hypot(
         moved.start_pose.x_m - visit.pose.x_m, moved.start_pose.y_m - visit.pose.y_m
     ) == pytest.approx(0.03)
