@@ -36,8 +36,10 @@ from sim.world import CameraSpec, World
 
 __all__ = ["ExplorationResult", "Explorer", "ExplorerConfig", "RunStatus", "autonomous_run"]
 
+#: Horizontal distance from the pipe axis to the wall at the rangers' height (5 cm).
+_HALF_WIDTH_M = math.sqrt(0.1**2 - 0.05**2)
 #: Side range in a straight pipe with the robot centred (rays at 40 deg, 5 cm high).
-_SIDE_NOMINAL_M = math.sqrt(0.1**2 - 0.05**2) / math.sin(math.radians(40.0))
+_SIDE_NOMINAL_M = _HALF_WIDTH_M / math.sin(math.radians(40.0))
 
 
 @dataclass(frozen=True)
@@ -190,15 +192,14 @@ class Explorer:
         """Distance from the robot's centre to a node centre ahead, if one is in sight."""
         front, left, right = self._ranges
         spec = self.robot.spec
-        half_width = _SIDE_NOMINAL_M * math.sin(math.radians(40.0))
         candidates = []
         if front < self.config.wall_ahead_m + spec.tof_forward_m:
-            candidates.append(front + spec.tof_forward_m - half_width)
+            candidates.append(front + spec.tof_forward_m - _HALF_WIDTH_M)
         if max(left, right) > self.config.opening_factor * _SIDE_NOMINAL_M:
             # The side ray meets the wall line this far ahead of the robot; the opening
             # starts a half-width before the node centre.
-            ahead = spec.tof_forward_m + half_width / math.tan(math.radians(40.0))
-            candidates.append(ahead + half_width)
+            ahead = spec.tof_forward_m + _HALF_WIDTH_M / math.tan(math.radians(40.0))
+            candidates.append(ahead + _HALF_WIDTH_M)
         return min(candidates) if candidates else None
 
     def _follow(self) -> float | _Bend | RunStatus:
@@ -375,8 +376,7 @@ class Explorer:
         front = float(np.median(fronts))
         if front > c.scan_open_m:  # open ahead: the scan's centre stands
             return None
-        half_width = _SIDE_NOMINAL_M * math.sin(math.radians(40.0))
-        error = front - (half_width - spec.tof_forward_m)
+        error = front - (_HALF_WIDTH_M - spec.tof_forward_m)
         if abs(error) < c.settle_tolerance_m:
             return None
         return self._straight(error, self._yaw_est)

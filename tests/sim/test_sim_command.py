@@ -90,9 +90,8 @@ def test_every_decision_on_the_perfect_paper_tour_is_right(
 ) -> None:
     # In the noise condition (3 cm off centre) this does not hold on every seed: see
     # the README's simulator section for the measured rates.
-    condition = "perfect"
-    target = tmp_path / condition
-    argv = ["sim", "--network", "paper", "--condition", condition]
+    target = tmp_path / "perfect"
+    argv = ["sim", "--network", "paper", "--condition", "perfect"]
     status, _, err = _run([*argv, "--save-sweeps", str(target)], capfd)
     assert status == 0, err
     folders = sorted(target.iterdir())
