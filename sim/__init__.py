@@ -10,23 +10,45 @@ from sim.episode import Condition, Episode, Pose, SimConfig, Sweep, Visit
 from sim.network import Network, Node, NodeKind, Pipe, build_network
 from sim.plan import Tour, right_hand_tour, tour_edges
 from sim.robot import PlanarPose, Robot, RobotSpec
+from sim.stream import (
+    ControlStep,
+    NodeArrival,
+    NodeDeparture,
+    Note,
+    RecordSink,
+    SimRecord,
+    SweepEnd,
+    SweepImage,
+    SweepStart,
+    TruePose,
+)
 from sim.world import CameraSpec, World
 
 __all__ = [
     "CameraSpec",
     "Condition",
+    "ControlStep",
     "Episode",
     "Network",
     "Node",
+    "NodeArrival",
+    "NodeDeparture",
     "NodeKind",
+    "Note",
     "Pipe",
     "PlanarPose",
     "Pose",
+    "RecordSink",
     "Robot",
     "RobotSpec",
     "SimConfig",
+    "SimRecord",
     "Sweep",
+    "SweepEnd",
+    "SweepImage",
+    "SweepStart",
     "Tour",
+    "TruePose",
     "Visit",
     "World",
     "build_network",

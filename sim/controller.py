@@ -32,6 +32,17 @@ import numpy as np
 
 from sim.episode import Pose, Sweep, sweep_start_angle
 from sim.robot import NS_PER_S, EncoderReading, ImuReading, PlanarPose, RangeReading, Reading, Robot
+from sim.stream import (
+    ControlStep,
+    NodeArrival,
+    NodeDeparture,
+    Note,
+    RecordSink,
+    SweepEnd,
+    SweepImage,
+    SweepStart,
+    TruePose,
+)
 from sim.world import CameraSpec, World
 
 __all__ = ["ExplorationResult", "Explorer", "ExplorerConfig", "RunStatus", "autonomous_run"]
@@ -122,6 +133,7 @@ class Explorer:
         camera: CameraSpec,
         config: ExplorerConfig | None = None,
         true_node_of: Callable[[PlanarPose], str] | None = None,
+        sink: RecordSink | None = None,
     ) -> None:
         self.robot = robot
         self.camera = camera
@@ -137,10 +149,21 @@ class Explorer:
         self._ranges = robot.ranges()
         self._result = ExplorationResult(RunStatus.FINISHED)
         self._last_progress_ns = 0
+        self._sink = sink
+        self._state = "calibrating"  # what the robot believes it is doing, for the log
 
     # -- low level: drive and keep the estimates ------------------------------------
 
+    def _emit_step(self, v: float, w: float) -> None:
+        if self._sink is None:
+            return
+        t = self.robot.t_ns
+        self._sink(TruePose(t, self.robot.pose))
+        x, y = (float(c) for c in self._xy_est)
+        self._sink(ControlStep(t, self._state, v, w, self._yaw_est, x, y))
+
     def _drive(self, v: float, w: float, duration_ns: int) -> None:
+        self._emit_step(v, w)
         readings = self.robot.drive(v, w, duration_ns)
         spec = self.robot.spec
         metres_per_tick = math.pi * spec.wheel_diameter_m / spec.encoder_ticks_per_rev
@@ -168,14 +191,18 @@ class Explorer:
                     self._last_progress_ns = r.t_ns
             elif isinstance(r, RangeReading):
                 self._ranges = r.ranges_m
+            if self._sink is not None:
+                self._sink(r)
         self._result.readings.extend(readings)
 
     def _gyro_bias(self) -> float:
         """Mean yaw rate over every sample taken standing still (0 before any)."""
         return self._still_rate_sum / self._still_samples if self._still_samples else 0.0
 
-    def _event(self, text: str) -> None:
+    def _event(self, text: str, warning: bool = False) -> None:
         self._result.events.append((self.robot.t_ns, text))
+        if self._sink is not None:
+            self._sink(Note(self.robot.t_ns, text, warning))
 
     def _watchdog(self) -> RunStatus | None:
         if self.robot.in_contact():
@@ -206,6 +233,7 @@ class Explorer:
         """Follow the pipe until a node is detected ahead (returns its distance) or a
         bend has been passed (returns where it was)."""
         c = self.config
+        self._state = "following"
         track: list[tuple[float, np.ndarray, float]] = []  # (distance, position, heading)
         while True:
             distance = self._node_distance_m()
@@ -271,6 +299,7 @@ class Explorer:
 
     def _turn_to(self, heading: float) -> None:
         c = self.config
+        self._state = "turning"
         for _ in range(400):
             error = math.remainder(heading - self._yaw_est, 2.0 * math.pi)
             if abs(error) < 0.01:
@@ -282,24 +311,36 @@ class Explorer:
 
     def _sweep(self) -> None:
         c = self.config
+        self._state = "sweeping"
         pose = self.robot.pose
-        angle = sweep_start_angle(self._yaw_est, c.images_per_sweep, c.align_sweeps)
+        n = c.images_per_sweep
+        number = len(self._result.sweeps) + 1  # one sweep per visit: the same number
+        angle = sweep_start_angle(self._yaw_est, n, c.align_sweeps)
         first = pose.yaw_rad + angle  # where the camera truly points: the robot's true yaw
+        sink = self._sink
+        if sink is not None:
+            sink(NodeArrival(self.robot.t_ns, number))
+            sink(SweepStart(self.robot.t_ns, number, number, n, angle, self.camera.fov_rad))
         images = []
-        for j in range(c.images_per_sweep):
-            yaw = first - j * 2.0 * math.pi / c.images_per_sweep
+        for j in range(n):
+            step = j * 2.0 * math.pi / n
             eye = (pose.x_m + 1.3e-4, pose.y_m + 0.7e-4, c.camera_height_m)
-            images.append(self.robot.world.render(eye, yaw, self.camera))
+            images.append(self.robot.world.render(eye, first - step, self.camera))
+            if sink is not None:
+                sink(SweepImage(self.robot.t_ns, number, number, j, angle - step, images[-1]))
             self._drive(0.0, 0.0, c.sweep_step_ns)  # the camera motor turns; the robot waits
         truth = self._true_node_of(pose) if self._true_node_of is not None else ""
         start = Pose(pose.x_m, pose.y_m, c.camera_height_m, 0.0, 0.0, first)
         sweep = Sweep(np.stack(images), start, str(truth), camera_angle_rad=angle)
         self._result.sweeps.append(sweep)
-        self._event(f"sweep {len(self._result.sweeps)}")
+        self._event(f"sweep {number}")
+        if sink is not None:
+            sink(SweepEnd(self.robot.t_ns, number, number, sweep))
 
     def _scan_samples(self) -> list[tuple[float, float]]:
         """Turn once round in place: (estimated heading, front range) pairs."""
         c = self.config
+        self._state = "scanning"
         samples: list[tuple[float, float]] = []
         start = self._yaw_est
         while self._yaw_est - start < 2.0 * math.pi:
@@ -318,6 +359,7 @@ class Explorer:
         where the approach expected the centre wins.
         """
         c = self.config
+        self._state = "recentring"
         facing = self._yaw_est
         forward = self.robot.spec.tof_forward_m
         samples = self._scan_samples()
@@ -366,6 +408,7 @@ class Explorer:
         """
         c = self.config
         spec = self.robot.spec
+        self._state = "settling"
         start = len(self._result.readings)
         self._drive(0.0, 0.0, c.settle_ns)
         fronts = [
@@ -423,7 +466,7 @@ class Explorer:
                 status = self._recentre(expected)
                 if status is not None:
                     self._result.status = status
-                    self._event(f"watchdog: {status.value}")
+                    self._event(f"watchdog: {status.value}", warning=True)
                     break
             self._sweep()
             exits = self._scan()
@@ -445,7 +488,12 @@ class Explorer:
                 heading = back
             else:
                 heading = min(choices, key=lambda e: math.remainder(e - arrival, 2.0 * math.pi))
+            if self._sink is not None:
+                turn = math.remainder(heading - arrival, 2.0 * math.pi)
+                visit = len(self._result.sweeps)
+                self._sink(NodeDeparture(self.robot.t_ns, visit, len(exits), turn))
             self._turn_to(heading)
+            self._state = "leaving node"
             status = self._straight(0.2, heading)
             if status is None:
                 found = self._follow()
@@ -457,6 +505,7 @@ class Explorer:
                     move = found.centre - self._xy_est
                     back = math.atan2(move[1], move[0])
                     self._turn_to(back)
+                    self._state = "returning to bend"
                     status = self._straight(float(np.linalg.norm(move)), back)
                     self._turn_to(found.arrival_heading)
                     expected = found.centre
@@ -466,13 +515,16 @@ class Explorer:
                 else:
                     toward = np.array([math.cos(self._yaw_est), math.sin(self._yaw_est)])
                     expected = self._xy_est + found * toward
+                    self._state = "approaching node"
                     status = self._straight(c.approach_fraction * found, self._yaw_est)
             if status is not None:
                 self._result.status = status
-                self._event(f"watchdog: {status.value}")
+                self._event(f"watchdog: {status.value}", warning=True)
                 break
             arrival = self._yaw_est
         self._result.duration_ns = self.robot.t_ns
+        if self._sink is not None:
+            self._sink(TruePose(self.robot.t_ns, self.robot.pose))
         return self._result
 
 
@@ -482,6 +534,7 @@ def autonomous_run(
     seed: int,
     start: str | None = None,
     config: ExplorerConfig | None = None,
+    sink: RecordSink | None = None,
 ) -> ExplorationResult:
     """Place the robot at the start node (default the entry) and explore.
 
@@ -504,4 +557,4 @@ def autonomous_run(
         off = math.hypot(nearest.x_m - pose.x_m, nearest.y_m - pose.y_m)
         return nearest.label if off < 0.15 else "?"
 
-    return Explorer(robot, camera, config, true_node_of=true_node).run()
+    return Explorer(robot, camera, config, true_node_of=true_node, sink=sink).run()

@@ -1,0 +1,138 @@
+"""What a simulated run emits, record by record, as it happens.
+
+A run calls its sink with each record in time order: sensor readings, control
+steps, camera sweeps, node arrivals and departures, notes. The recorder turns
+them into log messages as they come, so a run cut short keeps everything it
+emitted. Records that only a simulator can know are marked ``truth`` in their
+docstrings: the true pose and the true node of a sweep.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.episode import Sweep
+from sim.robot import EncoderReading, ImuReading, PlanarPose, RangeReading
+
+__all__ = [
+    "ControlStep",
+    "NodeArrival",
+    "NodeDeparture",
+    "Note",
+    "RecordSink",
+    "SimRecord",
+    "SweepEnd",
+    "SweepImage",
+    "SweepStart",
+    "TruePose",
+]
+
+
+@dataclass(frozen=True)
+class TruePose:
+    """Truth: the robot's pose on the pipe floor at ``t_ns``."""
+
+    t_ns: int
+    pose: PlanarPose
+
+
+@dataclass(frozen=True)
+class ControlStep:
+    """A command of the controller, with the state it acts on and its own estimates."""
+
+    t_ns: int
+    state: str
+    linear_mps: float
+    angular_rps: float
+    heading_estimate_rad: float
+    x_estimate_m: float
+    y_estimate_m: float
+
+
+@dataclass(frozen=True)
+class SweepStart:
+    """A camera sweep begins: ``image_count`` images from ``camera_angle_rad``.
+
+    ``probe`` is ``(kind, yaw_rad, forward_m, left_m)`` for an active-vision probe
+    sweep, made after that move from the visit's sweep pose.
+    """
+
+    t_ns: int
+    sweep_id: int
+    visit_id: int
+    image_count: int
+    camera_angle_rad: float
+    fov_rad: float
+    probe: tuple[str, float, float, float] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class SweepImage:
+    """One image of a sweep (RGB, H x W x 3), the camera at ``camera_angle_rad``
+    relative to the robot's heading."""
+
+    t_ns: int
+    sweep_id: int
+    visit_id: int
+    index: int
+    camera_angle_rad: float
+    image: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class SweepEnd:
+    """A sweep is complete; ``sweep`` holds its images and its truth."""
+
+    t_ns: int
+    sweep_id: int
+    visit_id: int
+    sweep: Sweep
+
+
+@dataclass(frozen=True)
+class NodeArrival:
+    """The robot stands at a node centre, about to sweep."""
+
+    t_ns: int
+    visit_id: int
+
+
+@dataclass(frozen=True)
+class NodeDeparture:
+    """The robot leaves a node by the pipe at ``exit_rad`` from its arrival heading
+    (0 straight on, positive to the left), having found ``exits`` pipes there."""
+
+    t_ns: int
+    visit_id: int
+    exits: int
+    exit_rad: float
+
+
+@dataclass(frozen=True)
+class Note:
+    """A notable event, as text (a watchdog, back at the start, a bend passed)."""
+
+    t_ns: int
+    text: str
+    warning: bool = False
+
+
+SimRecord = (
+    RangeReading
+    | ImuReading
+    | EncoderReading
+    | TruePose
+    | ControlStep
+    | SweepStart
+    | SweepImage
+    | SweepEnd
+    | NodeArrival
+    | NodeDeparture
+    | Note
+)
+
+#: Receives every record of a run, in time order.
+RecordSink = Callable[[SimRecord], None]
