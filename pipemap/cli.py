@@ -34,6 +34,12 @@ def _run(argv: Sequence[str] | None) -> int:
         from pipemap.sim_command import run_sim
 
         return run_sim(args, sys.stdout)
+    if args.command in ("record", "info"):
+        from pipemap import log_commands
+
+        if args.command == "record":
+            return log_commands.run_record(args, sys.stdout, sys.stderr)
+        return log_commands.run_info(args, sys.stdout)
     raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other
 
 

@@ -7,7 +7,7 @@ exits with status 2. Any other exception is a bug and keeps its traceback.
 
 from __future__ import annotations
 
-__all__ = ["PipemapError", "InputError", "LocalizerError", "SimError"]
+__all__ = ["InputError", "LocalizerError", "LogFormatError", "PipemapError", "SimError"]
 
 
 class PipemapError(Exception):
@@ -24,3 +24,7 @@ class LocalizerError(PipemapError):
 
 class SimError(PipemapError):
     """A simulation was asked for something impossible: a malformed network, a bad setting."""
+
+
+class LogFormatError(PipemapError):
+    """A log file is missing, is not an MCAP file, or is not a pipemap log."""

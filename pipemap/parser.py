@@ -79,6 +79,30 @@ def _add_matching_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
+    """What to simulate: network, start, seed, condition, camera; shared by sim and record."""
+    p.add_argument("--network", required=True, help="paper, grid:RxC, random:N or tree:N")
+    p.add_argument("--start", default=None, help="start node label (default: the entry)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of every random draw (0)")
+    p.add_argument(
+        "--condition",
+        choices=["perfect", "noise", "active", "entrance", "autonomous"],
+        default=condition,
+        help=f"placement at junctions, as in the paper (default {condition})",
+    )
+    p.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
+    p.add_argument(
+        "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
+    )
+    p.add_argument(
+        "--align-sweeps",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="start each sweep at the multiple of 360/N degrees nearest the robot's heading "
+        "estimate (default); --no-align-sweeps starts straight ahead, as in the paper",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full ``pipemap`` parser with one subparser per command."""
     parser = _OneLineParser(
@@ -122,27 +146,33 @@ def build_parser() -> argparse.ArgumentParser:
         description="Explore a pipe network by the right-most-branch rule and save every "
         "junction sweep as DIR/0001, DIR/0002, ... in the paper's folder layout.",
     )
-    p_sim.add_argument("--network", required=True, help="paper, grid:RxC, random:N or tree:N")
-    p_sim.add_argument("--start", default=None, help="start node label (default: the entry)")
-    p_sim.add_argument("--seed", type=_seed, default=0, help="seed of every random draw (0)")
-    p_sim.add_argument(
-        "--condition",
-        choices=["perfect", "noise", "active", "entrance", "autonomous"],
-        default="perfect",
-        help="placement at junctions, as in the paper (default perfect)",
-    )
-    p_sim.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
-    p_sim.add_argument(
-        "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
-    )
-    p_sim.add_argument(
-        "--align-sweeps",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="start each sweep at the multiple of 360/N degrees nearest the robot's heading "
-        "estimate (default); --no-align-sweeps starts straight ahead, as in the paper",
-    )
+    _add_run_options(p_sim, "perfect")
     p_sim.add_argument("--save-sweeps", required=True, metavar="DIR", help="new or empty folder")
+
+    p_record = sub.add_parser(
+        "record",
+        help="run a simulated exploration and write its log (MCAP)",
+        description="Run an episode with the localizer online and write every sensor stream, "
+        "camera sweep, ground truth and online decision to one MCAP log.",
+    )
+    _add_run_options(p_record, "autonomous")
+    p_record.add_argument(
+        "--threshold",
+        type=_threshold,
+        default=0.36,
+        help="the online localizer's known/new threshold (default 0.36)",
+    )
+    p_record.add_argument("-o", "--output", required=True, metavar="RUN.mcap", help="log file")
+    p_record.add_argument("--force", action="store_true", help="overwrite an existing log")
+
+    p_info = sub.add_parser(
+        "info",
+        help="describe a log: channels, counts, run settings, integrity",
+        description="Describe a pipemap log. A log cut short is read up to its last complete "
+        "record (exit 0); a damaged one is read up to the damage (exit 1).",
+    )
+    p_info.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
+    p_info.add_argument("--json", action="store_true", help="print one JSON object")
     return parser
 
 

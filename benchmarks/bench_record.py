@@ -1,0 +1,86 @@
+"""Recording cost: a ``paper`` run with and without its log, and the log's size.
+
+    python benchmarks/bench_record.py [--resolution PX] [--repeat N]
+
+Runs the autonomous exploration of ``paper`` from S at the default settings three
+ways, each in a fresh world, and prints the wall time of each (best of N):
+
+1. the run alone: the simulator and its explorer, nothing recorded;
+2. the run with the online localizer, nothing written;
+3. ``pipemap record``'s path: the run, the online localizer and the log writer.
+
+The issue's target: writing adds less than 10% to the run's wall time (3 against 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from pipemap import __version__
+from recorder import RecordSettings, record_run
+from recorder.session import _gray_set
+from sim.controller import ExplorerConfig, autonomous_run
+from sim.network import build_network
+from sim.stream import SweepEnd
+from sim.world import CameraSpec, World
+
+
+def _run_alone(resolution: int, with_localizer: bool) -> float:
+    from localizer import Localizer
+
+    network = build_network("paper", seed=0)
+    camera = CameraSpec(resolution_px=resolution)
+    localizer = Localizer()
+
+    def sink(record: object) -> None:
+        if isinstance(record, SweepEnd):
+            sweep = record.sweep
+            image_set = _gray_set(sweep.images, camera.fov_rad, sweep.camera_angle_rad)
+            localizer.localize(image_set, None)
+
+    start = time.perf_counter()
+    with World(network, seed=0) as world:
+        autonomous_run(
+            world, camera, 0, config=ExplorerConfig(), sink=sink if with_localizer else None
+        )
+    return time.perf_counter() - start
+
+
+def _record(resolution: int, folder: Path) -> tuple[float, int, int]:
+    network = build_network("paper", seed=0)
+    path = folder / f"bench-{time.perf_counter_ns()}.mcap"
+    start = time.perf_counter()
+    result = record_run(
+        path, RecordSettings("paper", resolution_px=resolution), network, __version__
+    )
+    wall = time.perf_counter() - start
+    size = path.stat().st_size
+    path.unlink()
+    return wall, size, result.messages
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--resolution", type=int, default=400)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    alone = min(_run_alone(args.resolution, False) for _ in range(args.repeat))
+    online = min(_run_alone(args.resolution, True) for _ in range(args.repeat))
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = [_record(args.resolution, Path(tmp)) for _ in range(args.repeat)]
+    wall, size, count = min(runs)
+    print(f"paper, autonomous from S, {args.resolution}x{args.resolution}, best of {args.repeat}:")
+    print(f"  run alone                       {alone:6.2f} s")
+    print(f"  run + online localizer          {online:6.2f} s")
+    print(f"  run + localizer + log (record)  {wall:6.2f} s")
+    print(f"  writing adds                    {100.0 * (wall - online) / online:5.1f} %")
+    print(f"  log: {size / 1e6:.1f} MB, {count} messages")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,171 @@
+"""From what the simulator and the localizer produce to log messages.
+
+One function per message type; each takes plain values and returns a protobuf
+message, so the conversions are tested without a simulator. Images are stored as
+lossless PNG: a replay must see exactly what the robot saw.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.Point3_pb2 import Point3
+from foxglove_schemas_protobuf.Pose_pb2 import Pose as FoxglovePose
+from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
+from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
+from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+from google.protobuf.timestamp_pb2 import Timestamp
+
+from localizer import Decision as LocalizerDecision
+from recorder import schemas
+from sim.network import Network
+
+__all__ = [
+    "WORLD_FRAME",
+    "decision_message",
+    "decode_png",
+    "encode_png",
+    "image_message",
+    "log_message",
+    "network_message",
+    "pose_message",
+    "timestamp",
+]
+
+WORLD_FRAME = "world"
+ROBOT_FRAME = "robot"
+CAMERA_FRAME = "camera"
+_NS_PER_S = 1_000_000_000
+
+
+def timestamp(t_ns: int) -> Timestamp:
+    """A protobuf timestamp of simulated time (seconds since the run began)."""
+    return Timestamp(seconds=t_ns // _NS_PER_S, nanos=t_ns % _NS_PER_S)
+
+
+def _yaw_quaternion(yaw_rad: float) -> Quaternion:
+    return Quaternion(x=0.0, y=0.0, z=math.sin(yaw_rad / 2.0), w=math.cos(yaw_rad / 2.0))
+
+
+def encode_png(rgb: np.ndarray) -> bytes:
+    """Lossless PNG bytes of an RGB (H x W x 3, uint8) image."""
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+        raise ValueError(f"expected an H x W x 3 uint8 image, got {rgb.shape} {rgb.dtype}")
+    ok, png = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
+        raise ValueError("PNG encoding failed")
+    return png.tobytes()
+
+
+def decode_png(data: bytes) -> np.ndarray | None:
+    """The RGB image of PNG bytes, or ``None`` when they are not a readable image."""
+    bgr = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
+    if bgr is None:
+        return None
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def image_message(t_ns: int, rgb: np.ndarray) -> schemas.CompressedImage:
+    """A camera image as Foxglove's ``CompressedImage`` (PNG)."""
+    return schemas.CompressedImage(
+        timestamp=timestamp(t_ns), frame_id=CAMERA_FRAME, data=encode_png(rgb), format="png"
+    )
+
+
+def pose_message(t_ns: int, x_m: float, y_m: float, yaw_rad: float) -> schemas.FrameTransform:
+    """The robot's true pose on the pipe floor as Foxglove's ``FrameTransform``."""
+    return schemas.FrameTransform(
+        timestamp=timestamp(t_ns),
+        parent_frame_id=WORLD_FRAME,
+        child_frame_id=ROBOT_FRAME,
+        translation=Vector3(x=x_m, y=y_m, z=0.0),
+        rotation=_yaw_quaternion(yaw_rad),
+    )
+
+
+def log_message(t_ns: int, text: str, warning: bool = False) -> schemas.Log:
+    """A notable event as Foxglove's ``Log``."""
+    level = schemas.Log.Level.WARNING if warning else schemas.Log.Level.INFO
+    return schemas.Log(timestamp=timestamp(t_ns), level=level, message=text, name="pipemap")
+
+
+def network_message(network: Network, t_ns: int = 0) -> schemas.SceneUpdate:
+    """The network's pipes (centre lines, with their diameter) and labelled nodes as
+    Foxglove's ``SceneUpdate``: one entity per pipe (``pipe/A-B``) and per node
+    (``node/A``), in the world frame."""
+    update = schemas.SceneUpdate()
+    grey = Color(r=0.6, g=0.6, b=0.6, a=1.0)
+    for pipe in network.pipes:
+        a, b = network.node(pipe.a), network.node(pipe.b)
+        entity = SceneEntity(
+            timestamp=timestamp(t_ns), frame_id=WORLD_FRAME, id=f"pipe/{pipe.a}-{pipe.b}"
+        )
+        entity.lines.append(
+            LinePrimitive(
+                type=LinePrimitive.Type.LINE_STRIP,
+                pose=FoxglovePose(position=Vector3(), orientation=Quaternion(w=1.0)),
+                thickness=network.diameter_m,
+                points=[Point3(x=a.x_m, y=a.y_m, z=0.0), Point3(x=b.x_m, y=b.y_m, z=0.0)],
+                color=grey,
+            )
+        )
+        update.entities.append(entity)
+    for node in network.nodes:
+        at = FoxglovePose(position=Vector3(x=node.x_m, y=node.y_m), orientation=Quaternion(w=1.0))
+        entity = SceneEntity(
+            timestamp=timestamp(t_ns), frame_id=WORLD_FRAME, id=f"node/{node.label}"
+        )
+        size = network.diameter_m * 1.2
+        entity.spheres.append(
+            SpherePrimitive(
+                pose=at, size=Vector3(x=size, y=size, z=size), color=Color(r=0.9, g=0.5, a=0.8)
+            )
+        )
+        entity.texts.append(
+            TextPrimitive(
+                pose=at,
+                billboard=True,
+                font_size=14.0,
+                scale_invariant=True,
+                color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
+                text=node.label,
+            )
+        )
+        entity.metadata.add(key="kind", value=network.kind(node.label).value)
+        update.entities.append(entity)
+    return update
+
+
+def decision_message(
+    t_ns: int, visit_id: int, decision: LocalizerDecision, threshold: float
+) -> schemas.Decision:
+    """The online localizer's decision for one visit."""
+    message = schemas.Decision(
+        time_ns=t_ns,
+        visit_id=visit_id,
+        node=decision.node,
+        known=decision.known,
+        similarity=decision.similarity,
+        threshold=threshold,
+    )
+    if decision.candidate is not None:
+        message.candidate = decision.candidate
+    if decision.margin is not None:
+        message.margin = decision.margin
+    match = decision.match
+    if match is not None:
+        message.image_shift = match.image_shift
+        message.pixel_shift = match.pixel_shift
+        message.rotation_rad = match.rotation_rad
+        message.rotation_pinhole_rad = match.rotation_pinhole_rad
+    for probe in decision.probes:
+        result = message.probes.add(kind=probe.request.kind.value, improved=probe.improved)
+        if probe.similarity is not None:
+            result.similarity = probe.similarity
+    return message

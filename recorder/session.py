@@ -1,0 +1,362 @@
+"""Recording a run: the simulator, the localizer online, and every record to the log.
+
+:func:`record_run` builds the world, runs the episode (the autonomous explorer, or
+the paper's placement conditions), and writes each record the simulator emits as
+it comes: sensors and the controller under ``/robot``, the true pose and the true
+node of each sweep under ``/truth``, and the online localizer's decision for each
+visit under ``/online``. The localizer sees exactly what the log holds: the robot's
+images after a lossless PNG round trip, and its own camera angles.
+
+Active vision: the localizer may ask for probe sweeps after small moves. In the
+``active`` condition the robot makes them (they are logged as probe sweeps of the
+visit). In every other condition it cannot, and the decision records the probes as
+missing; a replay of the log then meets the same answer.
+
+In the placement conditions (``perfect``, ``noise``, ``active``, ``entrance``) the
+robot is put at each node by hand, as in the paper: there are no drive sensors,
+and log time advances by the camera's steps and by the time the robot would take
+to drive each pipe at its cruising speed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from localizer import DEFAULT_THRESHOLD, ImageSet, Localizer, LocalizerConfig, ProbeRequest
+from pipemap.errors import InputError
+from recorder import messages
+from recorder.background import BackgroundWriter
+from recorder.convert import ReadyMessage, SweepDone
+from recorder.topics import FORMAT_VERSION, Topic
+from sim.controller import ExplorerConfig, RunStatus, autonomous_run
+from sim.episode import Condition, Episode, SimConfig, Sweep, Visit
+from sim.network import Network
+from sim.robot import PlanarPose, RobotSpec
+from sim.stream import (
+    NodeArrival,
+    NodeDeparture,
+    SimRecord,
+    SweepEnd,
+    SweepImage,
+    SweepStart,
+    TruePose,
+)
+from sim.world import CameraSpec, World
+
+__all__ = ["Progress", "RecordResult", "RecordSettings", "record_run"]
+
+_NS_PER_S = 1_000_000_000
+#: Placement conditions: the camera motor's step, a probe move, the cruising speed.
+_SWEEP_STEP_NS = 500_000_000
+_PROBE_MOVE_NS = 2 * _NS_PER_S
+_CRUISE_MPS = ExplorerConfig().speed_mps
+
+
+@dataclass(frozen=True)
+class RecordSettings:
+    """What to run: the network, the start, the seed, the condition, the camera."""
+
+    network: str
+    start: str | None = None
+    seed: int = 0
+    condition: Condition = Condition.AUTONOMOUS
+    resolution_px: int = 400
+    images_per_sweep: int = 6
+    align_sweeps: bool = True
+    threshold: float = DEFAULT_THRESHOLD
+
+    def camera(self) -> CameraSpec:
+        """The camera of the run."""
+        return CameraSpec(resolution_px=self.resolution_px)
+
+    def metadata(self, network: Network, version: str) -> dict[str, str]:
+        """The ``pipemap.run`` metadata record: strings only, deterministic."""
+        camera = self.camera()
+        simulator: dict[str, Any] = {
+            "robot": dataclasses.asdict(RobotSpec()),
+            "camera": dataclasses.asdict(camera),
+        }
+        if self.condition is Condition.AUTONOMOUS:
+            simulator["explorer"] = dataclasses.asdict(self._explorer())
+        else:
+            simulator["placement"] = dataclasses.asdict(self._sim_config())
+            simulator["placement"].pop("camera")
+            simulator["placement"]["condition"] = self.condition.value
+        return {
+            "format_version": FORMAT_VERSION,
+            "pipemap_version": version,
+            "network": self.network,
+            "seed": str(self.seed),
+            "condition": self.condition.value,
+            "start": self.start if self.start is not None else network.entry,
+            "resolution_px": str(self.resolution_px),
+            "images_per_sweep": str(self.images_per_sweep),
+            "fov_rad": repr(camera.fov_rad),
+            "align_sweeps": "true" if self.align_sweeps else "false",
+            "threshold": repr(self.threshold),
+            "simulator": json.dumps(simulator, sort_keys=True, default=_json_value),
+        }
+
+    def _explorer(self) -> ExplorerConfig:
+        return ExplorerConfig(
+            images_per_sweep=self.images_per_sweep, align_sweeps=self.align_sweeps
+        )
+
+    def _sim_config(self) -> SimConfig:
+        return SimConfig(
+            condition=self.condition,
+            seed=self.seed,
+            camera=self.camera(),
+            images_per_sweep=self.images_per_sweep,
+            align_sweeps=self.align_sweeps,
+        )
+
+
+def _json_value(value: object) -> object:
+    if isinstance(value, tuple):
+        return list(value)
+    if hasattr(value, "value"):
+        return value.value  # enums
+    raise TypeError(f"not JSON: {value!r}")
+
+
+@dataclass(frozen=True)
+class Progress:
+    """How far a recording has come."""
+
+    sim_time_ns: int
+    sweeps: int
+    visits: int
+
+
+@dataclass(frozen=True)
+class RecordResult:
+    """How a recording ended and what it holds.
+
+    ``status`` is the robot's (``finished``, a watchdog's reason, or ``complete`` /
+    ``incomplete`` for a placed tour). ``true_nodes`` is the set of nodes whose
+    sweeps the log holds, from the simulator's truth, for the summary only.
+    """
+
+    status: str
+    ok: bool
+    sweeps: int
+    visits: int
+    distance_m: float
+    duration_ns: int
+    messages: int
+    true_nodes: frozenset[str]
+    node_count: int
+
+
+def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float) -> ImageSet:
+    gray = np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images])
+    return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
+
+
+class _NoProbes:
+    """A robot that cannot make probe moves: every request is answered ``None``."""
+
+    def probe(self, request: ProbeRequest) -> ImageSet | None:
+        return None
+
+
+class _OnlineSink:
+    """Sends each simulator record to the writer and runs the online localizer on every
+    visit's sweep (not on probe sweeps)."""
+
+    def __init__(
+        self,
+        writer: BackgroundWriter,
+        localizer: Localizer,
+        camera: CameraSpec,
+        progress: Callable[[Progress], None] | None,
+    ) -> None:
+        self.writer = writer
+        self.localizer = localizer
+        self.camera = camera
+        self.progress = progress
+        self.probes: Any = _NoProbes()  # set per visit by the placement runner
+        self.sweeps = 0
+        self.visits = 0
+        self.true_nodes: set[str] = set()
+        self.now_ns = 0
+
+    def __call__(self, record: SimRecord) -> None:
+        self.now_ns = max(self.now_ns, record.t_ns)
+        if isinstance(record, NodeArrival):
+            self.visits += 1
+        if not isinstance(record, SweepEnd):
+            self.writer.put(record)
+            return
+        sweep = record.sweep
+        self.writer.put(
+            SweepDone(
+                record.t_ns,
+                record.sweep_id,
+                record.visit_id,
+                len(sweep.images),
+                sweep.start_pose,
+                sweep.true_node,
+            )
+        )
+        self.sweeps += 1
+        if sweep.probe is None:
+            self.true_nodes.add(sweep.true_node)
+            decision = self.localizer.localize(self._seen(sweep), self.probes)
+            message = messages.decision_message(
+                self.now_ns, record.visit_id, decision, self.localizer.config.threshold
+            )
+            self.writer.put(ReadyMessage.of(self.now_ns, Topic.DECISION, message))
+        self.writer.send()
+        if self.progress is not None:
+            self.progress(Progress(self.now_ns, self.sweeps, self.visits))
+
+    def _seen(self, sweep: Sweep) -> ImageSet:
+        """The image set as a replay will see it (the log's PNG images are lossless)."""
+        return _gray_set(sweep.images, self.camera.fov_rad, sweep.camera_angle_rad)
+
+
+class _PlacedProbes:
+    """Probe moves of the ``active`` condition: each is swept and logged."""
+
+    def __init__(self, sink: _OnlineSink, visit: Visit, visit_id: int, runner: _PlacedRun) -> None:
+        self.sink, self.visit, self.visit_id, self.runner = sink, visit, visit_id, runner
+
+    def probe(self, request: ProbeRequest) -> ImageSet | None:
+        sweep = self.visit.probe(request.yaw_rad, request.forward_m, request.left_m)
+        self.runner.clock_ns += _PROBE_MOVE_NS
+        probe = (request.kind.value, request.yaw_rad, request.forward_m, request.left_m)
+        self.runner.emit_sweep(sweep, self.visit_id, probe)
+        return self.sink._seen(sweep)
+
+
+class _PlacedRun:
+    """The paper's placement conditions on a simulated clock."""
+
+    def __init__(self, world: World, settings: RecordSettings, sink: _OnlineSink) -> None:
+        self.world = world
+        self.settings = settings
+        self.sink = sink
+        self.clock_ns = 0
+        self.sweep_id = 0
+        self.distance_m = 0.0
+
+    def emit_sweep(
+        self, sweep: Sweep, visit_id: int, probe: tuple[str, float, float, float] | None
+    ) -> None:
+        self.sweep_id += 1
+        n = len(sweep.images)
+        fov = self.settings.camera().fov_rad
+        start = sweep.start_pose
+        yaw = start.yaw_rad - sweep.camera_angle_rad  # the robot's heading
+        self.sink(TruePose(self.clock_ns, PlanarPose(start.x_m, start.y_m, yaw)))
+        self.sink(
+            SweepStart(
+                self.clock_ns, self.sweep_id, visit_id, n, sweep.camera_angle_rad, fov, probe
+            )
+        )
+        for j, image in enumerate(sweep.images):
+            angle = sweep.camera_angle_rad - j * 2.0 * math.pi / n
+            self.sink(SweepImage(self.clock_ns, self.sweep_id, visit_id, j, angle, image))
+            self.clock_ns += _SWEEP_STEP_NS
+        self.sink(SweepEnd(self.clock_ns, self.sweep_id, visit_id, sweep))
+
+    def run(self) -> str:
+        episode = Episode(self.world, self.settings._sim_config(), start=self.settings.start)
+        network = self.world.network
+        previous: str | None = None
+        for visit in episode.visits():
+            visit_id = visit.index + 1
+            if previous is not None:
+                length = network.length_m(previous, visit.node)
+                self.distance_m += length
+                self.clock_ns += round(length / _CRUISE_MPS * _NS_PER_S)
+            self.sink(NodeArrival(self.clock_ns, visit_id))
+            if self.settings.condition is Condition.ACTIVE:
+                self.sink.probes = _PlacedProbes(self.sink, visit, visit_id, self)
+            else:
+                self.sink.probes = _NoProbes()
+            self.emit_sweep(visit.sweep, visit_id, None)
+            leave = episode.tour.visits[visit.index].leave_to
+            if leave is not None:
+                heading = network.pipe_headings(visit.node)[leave]
+                turn = math.remainder(heading - visit.pose.yaw_rad, 2.0 * math.pi)
+                exits = network.degree(visit.node)
+                self.sink(NodeDeparture(self.clock_ns, visit_id, exits, turn))
+            previous = visit.node
+        return "complete" if episode.tour.complete else "incomplete"
+
+
+def record_run(
+    path: Path,
+    settings: RecordSettings,
+    network: Network,
+    version: str,
+    progress: Callable[[Progress], None] | None = None,
+    overwrite: bool = False,
+) -> RecordResult:
+    """Run ``settings`` on ``network`` and write its log to ``path``.
+
+    The log is finished whatever ends the run; on an exception (Ctrl-C included)
+    its result metadata says so and the exception propagates. Without
+    ``overwrite`` an existing file is never touched.
+    """
+    if settings.start is not None and settings.start not in network.labels:
+        raise InputError(f"--start {settings.start}: no such node in {settings.network}")
+    camera = settings.camera()
+    localizer = Localizer(LocalizerConfig(threshold=settings.threshold))
+    mode = "wb" if overwrite else "xb"
+    with BackgroundWriter(path, mode, settings.metadata(network, version)) as writer:
+        writer.put(ReadyMessage.of(0, Topic.NETWORK, messages.network_message(network)))
+        sink = _OnlineSink(writer, localizer, camera, progress)
+        with World(network, seed=settings.seed) as world:
+            writer.send()  # the file is open before the run starts
+            if settings.condition is Condition.AUTONOMOUS:
+                result = autonomous_run(
+                    world,
+                    camera,
+                    settings.seed,
+                    start=settings.start,
+                    config=settings._explorer(),
+                    sink=sink,
+                )
+                status = result.status.value
+                distance, duration = result.distance_m, result.duration_ns
+                # The robot believes it is done; the truth says whether it covered all.
+                covered = sink.true_nodes - {"?"} == set(network.labels)
+                ok = result.status is RunStatus.FINISHED and covered
+            else:
+                placed = _PlacedRun(world, settings, sink)
+                status = placed.run()
+                distance, duration = placed.distance_m, placed.clock_ns
+                ok = status == "complete"
+        count = writer.finish(
+            {
+                "status": status,
+                "sweeps": str(sink.sweeps),
+                "visits": str(sink.visits),
+                "distance_m": repr(round(distance, 6)),
+                "duration_ns": str(duration),
+            }
+        )
+    return RecordResult(
+        status=status,
+        ok=ok,
+        sweeps=sink.sweeps,
+        visits=sink.visits,
+        distance_m=distance,
+        duration_ns=duration,
+        messages=count,
+        true_nodes=frozenset(sink.true_nodes - {"?"}),
+        node_count=len(network.nodes),
+    )

@@ -1,0 +1,18 @@
+"""Entry point of the log writer process (see :mod:`recorder.background`).
+
+``python -m recorder.writer_process RECORDS_FD REPLIES_FD PATH MODE``: reads
+pickled record batches from one pipe, writes the log at ``PATH``, answers on the
+other. Not for use by hand.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from recorder.background import writer_main
+
+if __name__ == "__main__":
+    records_fd, replies_fd, path, mode = sys.argv[1:5]
+    with os.fdopen(int(records_fd), "rb") as records, os.fdopen(int(replies_fd), "wb") as replies:
+        sys.exit(writer_main(records, replies, path, mode))

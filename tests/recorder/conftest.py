@@ -1,0 +1,63 @@
+"""Logs for the recorder tests: written by our own writer, whole and broken."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from recorder import LogWriter, Topic, schemas
+from recorder.messages import image_message, pose_message
+
+#: Settings of the small recorded run the end-to-end tests share.
+SMALL_RUN = ["--network", "paper", "--resolution", "32", "--seed", "3"]
+
+
+def record(output: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+    """``pipemap record`` as a user runs it: a subprocess."""
+    return subprocess.run(
+        [sys.executable, "-m", "pipemap", "record", *SMALL_RUN, *extra, "-o", str(output)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+@pytest.fixture(scope="session")
+def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An autonomous run of ``paper`` at 32 px, recorded once for the session."""
+    path = tmp_path_factory.mktemp("recorded") / "run.mcap"
+    done = record(path)
+    assert done.returncode == 0, done.stderr
+    return path
+
+
+def write_synthetic_log(path: Path, messages: int = 600, chunk_bytes: int = 4096) -> list[str]:
+    """A log of ranges, poses and small images in many chunks; returns the topics
+    written, in order."""
+    rng = np.random.default_rng(7)
+    topics: list[str] = []
+    with (
+        path.open("wb") as f,
+        LogWriter(
+            f, {"pipemap_version": "test", "network": "synthetic"}, chunk_bytes=chunk_bytes
+        ) as writer,
+    ):
+        for i in range(messages):
+            t = i * 10_000_000
+            if i % 50 == 0:
+                image = rng.integers(0, 255, (16, 16, 3), dtype=np.uint8)
+                writer.write(Topic.IMAGE, t, image_message(t, image))
+                topics.append(Topic.IMAGE)
+            elif i % 3 == 0:
+                writer.write(Topic.TRUE_POSE, t, pose_message(t, 0.01 * i, 0.0, 0.1))
+                topics.append(Topic.TRUE_POSE)
+            else:
+                ranges = schemas.Ranges(time_ns=t, front_m=0.5 + 1e-3 * i, front_left_m=0.2)
+                writer.write(Topic.RANGES, t, ranges)
+                topics.append(Topic.RANGES)
+        writer.finish({"status": "finished"})
+    return topics

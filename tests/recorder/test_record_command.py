@@ -1,0 +1,214 @@
+"""``pipemap record`` and ``pipemap info`` end to end, as subprocesses."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from recorder import METADATA_RESULT, METADATA_RUN, TOPICS, Integrity, Topic, read_log, schemas
+from tests.recorder.conftest import SMALL_RUN, record
+
+
+def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "pipemap", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def test_the_same_seed_gives_the_same_bytes(recorded_run: Path, tmp_path: Path) -> None:
+    again = tmp_path / "again.mcap"
+    done = record(again)
+    assert done.returncode == 0, done.stderr
+    assert again.read_bytes() == recorded_run.read_bytes()
+
+
+def test_a_run_logs_every_stream(recorded_run: Path) -> None:
+    contents = read_log(recorded_run)
+    assert contents.integrity is Integrity.OK
+    for topic in (Topic.RANGES, Topic.IMU, Topic.WHEELS, Topic.CONTROLLER, Topic.EVENTS):
+        assert contents.counts[topic] > 100 or topic == Topic.EVENTS, topic
+    # Sensor rates over the run: 20 Hz rangers, 100 Hz IMU, 50 Hz encoders.
+    seconds = contents.duration_ns / 1e9
+    assert contents.counts[Topic.IMU] == pytest.approx(100 * seconds, rel=0.01)
+    assert contents.counts[Topic.WHEELS] == pytest.approx(50 * seconds, rel=0.01)
+    assert contents.counts[Topic.RANGES] == pytest.approx(20 * seconds, rel=0.01)
+    by_topic: dict[str, list[bytes]] = {}
+    for m in contents.messages:
+        by_topic.setdefault(m.topic, []).append(m.data)
+    commands = [schemas.SweepCommand.FromString(d) for d in by_topic[Topic.SWEEP]]
+    starts = [c for c in commands if c.phase == schemas.SweepCommand.START]
+    images = [c for c in commands if c.phase == schemas.SweepCommand.IMAGE]
+    assert len(starts) == 13 and len(images) == 13 * 6
+    assert len(by_topic[Topic.IMAGE]) == 13 * 6
+    assert [c.image_index for c in images[:6]] == list(range(6))
+    truths = [schemas.TrueSweep.FromString(d).node for d in by_topic[Topic.TRUE_SWEEP]]
+    assert truths == list("SABACDCFCECAS")
+    decisions = [schemas.Decision.FromString(d) for d in by_topic[Topic.DECISION]]
+    assert [d.visit_id for d in decisions] == list(range(1, 14))
+    nodes = [schemas.NodeEvent.FromString(d) for d in by_topic[Topic.NODE]]
+    arrivals = [n for n in nodes if n.kind == schemas.NodeEvent.ARRIVAL]
+    departures = [n for n in nodes if n.kind == schemas.NodeEvent.DEPARTURE]
+    assert len(arrivals) == 13 and len(departures) == 12  # it stays at the start
+    meta = contents.metadata[METADATA_RUN]
+    assert (meta["network"], meta["seed"], meta["condition"]) == ("paper", "3", "autonomous")
+    assert contents.metadata[METADATA_RESULT]["status"] == "finished"
+
+
+def test_truth_and_online_decisions_live_apart_from_the_robot(recorded_run: Path) -> None:
+    contents = read_log(recorded_run)
+    truth_types = {"pipemap.TrueSweep", "foxglove.FrameTransform", "foxglove.SceneUpdate"}
+    for channel in contents.channels.values():
+        prefix = channel.topic.split("/")[1]
+        assert prefix in ("robot", "truth", "online"), channel.topic
+        if channel.schema_name in truth_types:
+            assert prefix == "truth", channel.topic
+        if channel.schema_name == "pipemap.Decision":
+            assert prefix == "online", channel.topic
+    # No robot message type has room for a node label or a true pose.
+    for topic, message_class in TOPICS:
+        if topic.startswith("/robot/"):
+            names = {f.name for f in message_class.DESCRIPTOR.fields}
+            assert not names & {"node", "true_node", "x_m", "y_m", "translation"}, topic
+
+
+def test_info_describes_the_log(recorded_run: Path) -> None:
+    done = pipemap("info", str(recorded_run), "--json")
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert doc["integrity"] == "ok" and doc["sweeps"] == 13 and doc["visits"] == 13
+    assert doc["metadata"]["network"] == "paper" and doc["metadata"]["seed"] == "3"
+    assert doc["metadata"]["result"]["status"] == "finished"
+    topics = {c["topic"]: c for c in doc["channels"]}
+    assert topics[Topic.IMAGE]["schema"] == "foxglove.CompressedImage"
+    assert topics[Topic.IMAGE]["count"] == 78
+    assert doc["messages"] == sum(c["count"] for c in doc["channels"])
+    assert doc["duration_s"] > 60
+    text = pipemap("info", str(recorded_run))
+    assert text.returncode == 0 and "integrity  ok" in text.stdout and "/robot/imu" in text.stdout
+
+
+def test_info_reports_a_cut_log_and_exits_0(recorded_run: Path, tmp_path: Path) -> None:
+    data = recorded_run.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    done = pipemap("info", str(cut), "--json")
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert doc["integrity"] == "truncated" and doc["messages"] > 0
+    assert 0 < doc["sweeps"] < 13
+
+
+def test_info_reports_a_damaged_log_and_exits_1(recorded_run: Path, tmp_path: Path) -> None:
+    data = bytearray(recorded_run.read_bytes())
+    data[len(data) // 3] ^= 0x01
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    done = pipemap("info", str(damaged), "--json")
+    assert done.returncode == 1, done.stderr
+    assert json.loads(done.stdout)["integrity"] == "corrupt"
+
+
+@pytest.mark.parametrize(
+    "content,message",
+    [(b"", "empty file"), (b"GARBAGE" * 100, "not an MCAP file")],
+)
+def test_info_refuses_garbage_in_one_line(tmp_path: Path, content: bytes, message: str) -> None:
+    path = tmp_path / "bad.mcap"
+    path.write_bytes(content)
+    done = pipemap("info", str(path))
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and message in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_record_refuses_to_overwrite(tmp_path: Path) -> None:
+    target = tmp_path / "run.mcap"
+    target.write_bytes(b"precious")
+    done = pipemap("record", *SMALL_RUN, "-o", str(target))
+    assert done.returncode == 2 and "--force" in done.stderr
+    assert done.stderr.count("\n") == 1
+    assert target.read_bytes() == b"precious"
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["--network", "nowhere:3"], "nowhere"),
+        (["--network", "paper", "--start", "Z"], "--start Z"),
+        (["--network", "paper", "--resolution", "7"], "resolution"),
+        (["--network", "paper", "--condition", "sideways"], "sideways"),
+    ],
+)
+def test_record_refuses_bad_arguments_before_creating_the_file(
+    tmp_path: Path, args: list[str], message: str
+) -> None:
+    target = tmp_path / "run.mcap"
+    done = pipemap("record", *args, "-o", str(target))
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and message in done.stderr
+    assert not target.exists()
+
+
+def _start_long_recording(target: Path) -> subprocess.Popen[str]:
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "pipemap",
+            "record",
+            "--network",
+            "tree:12",
+            "--seed",
+            "1",
+            "--resolution",
+            "32",
+            "-o",
+            str(target),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    # Wait until the first sweeps are on disk (each sweep's end is flushed).
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:
+        if target.exists() and target.stat().st_size > 20_000:
+            return process
+        time.sleep(0.2)
+    process.kill()
+    raise AssertionError("the recording wrote nothing within 120 s")
+
+
+def test_ctrl_c_leaves_a_valid_log_and_says_so(tmp_path: Path) -> None:
+    target = tmp_path / "interrupted.mcap"
+    process = _start_long_recording(target)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130
+    assert "interrupted" in err and str(target) in err and "Traceback" not in err
+    contents = read_log(target)
+    assert contents.integrity is Integrity.OK
+    assert contents.metadata[METADATA_RESULT]["status"] == "interrupted"
+    assert contents.counts[Topic.IMAGE] > 0
+
+
+def test_a_killed_recording_is_closed_by_its_writer(tmp_path: Path) -> None:
+    target = tmp_path / "killed.mcap"
+    process = _start_long_recording(target)
+    process.kill()  # SIGKILL: no handler runs in the recording process
+    process.wait(timeout=60)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:  # the writer process finishes on its own
+        contents = read_log(target)
+        if contents.integrity is Integrity.OK:
+            break
+        time.sleep(0.2)
+    assert contents.integrity is Integrity.OK, contents.problem
+    assert contents.metadata[METADATA_RESULT]["status"].startswith("lost its run")
+    assert contents.counts[Topic.IMAGE] > 0
