@@ -125,6 +125,7 @@ def info_document(path: Path) -> dict[str, Any]:
     metadata["result"] = contents.metadata.get(METADATA_RESULT)
     return {
         "file": str(path),
+        "writer": contents.library,
         "duration_s": contents.duration_ns / 1e9,
         "messages": sum(contents.counts.values()),
         "integrity": contents.integrity.value,
@@ -158,8 +159,7 @@ def run_info(args: argparse.Namespace, out: TextIO) -> int:
             f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images",
             f"sweeps     {doc['sweeps']} in {doc['visits']} node visits",
             f"result     {result.get('status', 'none recorded')}",
-            f"written by {meta.get('pipemap_version') and 'pipemap ' + meta['pipemap_version']}"
-            f", log format {meta.get('format_version', '?')}",
+            f"written by {doc['writer']}, log format {meta.get('format_version', '?')}",
             "channels",
         ]
         width = max(len(c["topic"]) for c in doc["channels"]) if doc["channels"] else 0

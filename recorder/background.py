@@ -17,10 +17,12 @@ from __future__ import annotations
 import contextlib
 import os
 import pickle
+import queue
 import signal
 import struct
 import subprocess
 import sys
+import threading
 import traceback
 from collections.abc import Mapping
 from pathlib import Path
@@ -44,7 +46,7 @@ def _send(stream: BinaryIO, item: object) -> None:
     stream.flush()
 
 
-def _receive(stream: BinaryIO) -> Any:
+def _receive_frame(stream: BinaryIO) -> bytes:
     head = stream.read(_LENGTH.size)
     if len(head) < _LENGTH.size:
         raise EOFError
@@ -52,7 +54,21 @@ def _receive(stream: BinaryIO) -> Any:
     data = stream.read(length)
     if len(data) < length:
         raise EOFError
-    return pickle.loads(data)
+    return data
+
+
+def _receive(stream: BinaryIO) -> Any:
+    return pickle.loads(_receive_frame(stream))
+
+
+def _drain(stream: BinaryIO, frames: queue.SimpleQueue[bytes | None]) -> None:
+    """Read frames as fast as they come, so that the run never waits on a full pipe
+    while the writer encodes; ``None`` marks the end of the stream."""
+    try:
+        while True:
+            frames.put(_receive_frame(stream))
+    except (EOFError, OSError):
+        frames.put(None)
 
 
 def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> int:
@@ -70,12 +86,14 @@ def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> i
         convert = RecordConverter(writer)
         _send(replies, ("ready", None))
         result: dict[str, str] | None = {"status": "lost its run: the recording process ended"}
+        frames: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
+        threading.Thread(target=_drain, args=(records, frames), daemon=True).start()
         try:
             while True:
-                try:
-                    item = _receive(records)
-                except EOFError:
+                frame = frames.get()
+                if frame is None:
                     break
+                item = pickle.loads(frame)
                 if isinstance(item, tuple):
                     result = item[1]
                     break
