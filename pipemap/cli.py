@@ -40,6 +40,12 @@ def _run(argv: Sequence[str] | None) -> int:
         if args.command == "record":
             return log_commands.run_record(args, sys.stdout, sys.stderr)
         return log_commands.run_info(args, sys.stdout)
+    if args.command in ("replay", "score"):
+        from pipemap import replay_commands
+
+        if args.command == "replay":
+            return replay_commands.run_replay(args, sys.stdout, sys.stderr)
+        return replay_commands.run_score(args, sys.stdout, sys.stderr)
     raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other
 
 

@@ -165,6 +165,57 @@ def build_parser() -> argparse.ArgumentParser:
     p_record.add_argument("-o", "--output", required=True, metavar="RUN.mcap", help="log file")
     p_record.add_argument("--force", action="store_true", help="overwrite an existing log")
 
+    for name, helptext, description in (
+        (
+            "replay",
+            "rebuild the map from a log, deterministically",
+            "Feed a log's /robot messages to the localizer in their total order and write "
+            "the map as JSON (the format of pipemap map --json).",
+        ),
+        (
+            "score",
+            "replay a log and score the map against its ground truth",
+            "Replay a log and compare every decision and the map with the log's /truth.",
+        ),
+    ):
+        p_log = sub.add_parser(name, help=helptext, description=description)
+        p_log.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
+        p_log.add_argument(
+            "--threshold", type=_threshold, default=0.36, help="known/new threshold (0.36)"
+        )
+        p_log.add_argument(
+            "--no-active-vision", action="store_true", help="never ask for probe sweeps"
+        )
+        p_log.add_argument(
+            "--downsample",
+            type=_positive_int,
+            default=None,
+            help="fast path: column decimation factor of the accurate stage (default 4)",
+        )
+        if name == "replay":
+            p_log.add_argument(
+                "-o",
+                "--output",
+                default=None,
+                metavar="MAP.json",
+                help="write the map here (default: standard output)",
+            )
+            p_log.add_argument(
+                "--graphml",
+                default=None,
+                metavar="MAP.graphml",
+                help="also write the map as GraphML",
+            )
+            p_log.add_argument("--force", action="store_true", help="overwrite existing files")
+        else:
+            p_log.add_argument("--json", action="store_true", help="print one JSON object")
+            p_log.add_argument(
+                "--save-results",
+                default=None,
+                metavar="DIR",
+                help="write score.json and visits.csv to this new folder",
+            )
+
     p_info = sub.add_parser(
         "info",
         help="describe a log: channels, counts, run settings, integrity",

@@ -53,3 +53,14 @@ def paper_sets() -> dict[str, PaperSet]:
         )
     assert len(out) >= 11, f"expected the 11 shared sets, found {sorted(out)}"
     return out
+
+
+@pytest.fixture(scope="session")
+def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An autonomous run of ``paper`` at 32 px, recorded once for the session."""
+    from tests.logs import record
+
+    path = tmp_path_factory.mktemp("recorded") / "run.mcap"
+    done = record(path)
+    assert done.returncode == 0, done.stderr
+    return path

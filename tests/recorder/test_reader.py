@@ -11,7 +11,7 @@ from mcap.writer import Writer as McapWriter
 
 from pipemap.errors import LogFormatError
 from recorder import METADATA_RESULT, METADATA_RUN, Integrity, Topic, read_log
-from tests.recorder.conftest import write_synthetic_log
+from tests.logs import write_synthetic_log
 
 
 @pytest.fixture(scope="module")

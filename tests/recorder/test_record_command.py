@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from recorder import METADATA_RESULT, METADATA_RUN, TOPICS, Integrity, Topic, read_log, schemas
-from tests.recorder.conftest import SMALL_RUN, record
+from tests.logs import SMALL_RUN, record
 
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:

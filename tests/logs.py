@@ -1,4 +1,4 @@
-"""Logs for the recorder tests: written by our own writer, whole and broken."""
+"""Logs for the tests: recorded by ``pipemap record``, or written by our own writer."""
 
 from __future__ import annotations
 
@@ -7,7 +7,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from recorder import LogWriter, Topic, schemas
 from recorder.messages import image_message, pose_message
@@ -24,15 +23,6 @@ def record(output: Path, *extra: str) -> subprocess.CompletedProcess[str]:
         text=True,
         timeout=600,
     )
-
-
-@pytest.fixture(scope="session")
-def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An autonomous run of ``paper`` at 32 px, recorded once for the session."""
-    path = tmp_path_factory.mktemp("recorded") / "run.mcap"
-    done = record(path)
-    assert done.returncode == 0, done.stderr
-    return path
 
 
 def write_synthetic_log(path: Path, messages: int = 600, chunk_bytes: int = 4096) -> list[str]:

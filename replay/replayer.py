@@ -1,0 +1,222 @@
+"""Replay: rebuild the map from a log's ``/robot`` messages, deterministically.
+
+The sweeps are put together from the camera's commands and images; every visit's
+sweep goes to the localizer in the order the robot took them. When the localizer
+asks for an active-vision probe, the probe sweeps the log holds for that visit
+answer it, matched by kind and move; a probe the log does not hold is answered
+``None``, and the decision records it as missing. The same log and settings give
+the same map, byte for byte.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+
+from localizer import (
+    Decision,
+    ImageSet,
+    Localizer,
+    LocalizerConfig,
+    ProbeRequest,
+    TopoMap,
+    map_document,
+)
+from pipemap.errors import LogFormatError, PipemapError
+from recorder import Integrity, LogMessage, Topic
+from recorder.messages import decode_png
+from recorder.schemas import CompressedImage, SweepCommand
+from replay.source import MessageSource
+
+__all__ = ["LoggedSweep", "ReplayResult", "VisitDecision", "replay", "sweeps_of", "visit_label"]
+
+#: A probe in the log answers a request for the same kind and move, to this much.
+_PROBE_MATCH = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class LoggedSweep:
+    """A complete sweep of the log, as the localizer sees it."""
+
+    sweep_id: int
+    visit_id: int
+    end_ns: int
+    images: ImageSet
+    #: ``(kind, yaw_rad, forward_m, left_m)`` of a probe sweep, else ``None``.
+    probe: tuple[str, float, float, float] | None = None
+
+
+@dataclass(frozen=True)
+class VisitDecision:
+    """The replay's decision for one node visit."""
+
+    visit_id: int
+    sweep_id: int
+    time_ns: int
+    decision: Decision
+    #: Wall time of the decision (not part of any deterministic output).
+    latency_s: float
+    #: Probes the localizer asked for that the log does not hold.
+    probes_not_in_log: int
+
+
+@dataclass
+class ReplayResult:
+    """The decisions of a replay, its map, and what it had to say about the log."""
+
+    visits: list[VisitDecision]
+    topomap: TopoMap
+    integrity: Integrity
+    warnings: list[str] = field(default_factory=list)
+    sweeps: int = 0
+    duration_ns: int = 0
+    images: int = 0
+    #: Camera angle of each sweep's first image relative to the robot (robot data).
+    camera_angles: dict[int, float] = field(default_factory=dict)
+
+    def document(self) -> dict[str, Any]:
+        """The map document, in the format of ``pipemap map --json``."""
+        return map_document(
+            self.topomap, [(visit_label(v.visit_id), v.decision) for v in self.visits]
+        )
+
+
+def visit_label(visit_id: int) -> str:
+    """A visit's name in the map document: its number, as ``pipemap sim`` names folders."""
+    return f"{visit_id:04d}"
+
+
+def _gray(png: bytes, where: str) -> np.ndarray:
+    rgb = decode_png(png)
+    if rgb is None:
+        raise LogFormatError(f"{where}: the image is not a readable PNG")
+    return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+
+
+def sweeps_of(messages: list[LogMessage], name: str = "log") -> tuple[list[LoggedSweep], list[str]]:
+    """Every complete sweep of ``messages`` (ordered ``/robot`` messages), and warnings
+    about sweeps that are not complete."""
+    images_at: dict[int, bytes] = {}
+    sweeps: list[LoggedSweep] = []
+    warnings: list[str] = []
+    start: Any = None
+    frames: list[np.ndarray] = []
+    for m in messages:
+        if m.topic == Topic.IMAGE:
+            image = CompressedImage.FromString(m.data)
+            if image.format != "png":
+                raise LogFormatError(f"{name}: image at {m.log_time_ns} ns is {image.format!r}")
+            images_at[m.log_time_ns] = image.data
+        elif m.topic == Topic.SWEEP:
+            command = SweepCommand.FromString(m.data)
+            where = f"{name}: sweep {command.sweep_id}"
+            if command.phase == SweepCommand.START:
+                if start is not None:
+                    warnings.append(f"sweep {start.sweep_id} never ended; skipped")
+                start, frames = command, []
+            elif command.phase == SweepCommand.IMAGE and start is not None:
+                png = images_at.pop(m.log_time_ns, None)
+                if png is None:
+                    raise LogFormatError(f"{where}: no image at {m.log_time_ns} ns")
+                frames.append(_gray(png, f"{where}, image {command.image_index}"))
+            elif command.phase == SweepCommand.END and start is not None:
+                if len(frames) != start.image_count:
+                    raise LogFormatError(
+                        f"{where}: {len(frames)} images where {start.image_count} were commanded"
+                    )
+                try:
+                    images = ImageSet(
+                        np.stack(frames),
+                        fov_rad=start.fov_rad,
+                        camera_angle_rad=start.camera_angle_rad,
+                    )
+                except (PipemapError, ValueError) as exc:
+                    raise LogFormatError(f"{where}: {exc}") from None
+                probe = None
+                if start.probe:
+                    probe = (
+                        start.probe_kind,
+                        start.probe_yaw_rad,
+                        start.probe_forward_m,
+                        start.probe_left_m,
+                    )
+                sweeps.append(
+                    LoggedSweep(command.sweep_id, start.visit_id, m.log_time_ns, images, probe)
+                )
+                start = None
+    if start is not None:
+        warnings.append(f"sweep {start.sweep_id} was cut off by the end of the log; skipped")
+    return sweeps, warnings
+
+
+class _LoggedProbes:
+    """Answers probe requests from the probe sweeps the log holds for one visit."""
+
+    def __init__(self, probes: list[LoggedSweep]) -> None:
+        self.probes = probes
+        self.not_in_log = 0
+
+    def probe(self, request: ProbeRequest) -> ImageSet | None:
+        wanted = (request.yaw_rad, request.forward_m, request.left_m)
+        for sweep in self.probes:
+            assert sweep.probe is not None
+            kind, *move = sweep.probe
+            if kind == request.kind.value and all(
+                math.isclose(a, b, rel_tol=0.0, abs_tol=_PROBE_MATCH)
+                for a, b in zip(move, wanted, strict=True)
+            ):
+                return sweep.images
+        self.not_in_log += 1
+        return None
+
+
+def replay(
+    source: MessageSource,
+    config: LocalizerConfig | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> ReplayResult:
+    """Feed every visit's sweep of ``source`` to a new localizer, in the robot's order."""
+    messages = source.robot_messages()
+    sweeps, warnings = sweeps_of(messages, source.name)
+    visits = [s for s in sweeps if s.probe is None]
+    probes: dict[int, list[LoggedSweep]] = {}
+    for s in sweeps:
+        if s.probe is not None:
+            probes.setdefault(s.visit_id, []).append(s)
+    localizer = Localizer(config)
+    decided: list[VisitDecision] = []
+    for i, sweep in enumerate(visits):
+        answers = _LoggedProbes(probes.get(sweep.visit_id, []))
+        start = time.perf_counter()
+        decision = localizer.localize(sweep.images, answers)
+        latency = time.perf_counter() - start
+        decided.append(
+            VisitDecision(
+                sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, answers.not_in_log
+            )
+        )
+        if progress is not None:
+            progress(i + 1, len(visits))
+    asked = sum(v.probes_not_in_log for v in decided)
+    if asked:
+        warnings.append(
+            f"{asked} probe sweep(s) asked for are not in the log; those visits were "
+            "decided without them"
+        )
+    duration = messages[-1].log_time_ns - messages[0].log_time_ns if messages else 0
+    return ReplayResult(
+        visits=decided,
+        topomap=localizer.map,
+        integrity=source.integrity,
+        warnings=warnings,
+        sweeps=len(sweeps),
+        duration_ns=duration,
+        images=sum(s.images.count for s in sweeps),
+        camera_angles={s.sweep_id: s.images.camera_angle_rad for s in sweeps},
+    )

@@ -1,0 +1,260 @@
+"""Scoring a replay against the log's ground truth.
+
+Per visit: the true node (from ``/truth/sweep``), the predicted node, similarity,
+margin, known or new, and the rotation estimate with its error against the true
+heading change. Counts of correct and wrong decisions, whether the map is the
+true graph of the visited nodes, and the paper's Table 1 (similarity of visits to
+known and to unknown junctions) and Table 2 (rotation error).
+
+A decision is:
+
+* ``correct_known``: declared known, and the junction it names is the true one;
+* ``correct_new``: declared new, and the junction was not visited before;
+* ``false_merge``: declared known, but the junction it names is another one, or
+  the junction is new;
+* ``false_new``: declared new, but the junction was visited before (a duplicate).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import statistics
+from dataclasses import dataclass
+from typing import Any
+
+from localizer import LocalizerConfig, TopoMap, wrap_angle_rad
+from pipemap.errors import LogFormatError
+from recorder import Topic
+from recorder.schemas import TrueSweep
+from replay.replayer import ReplayResult, replay, visit_label
+from replay.source import MessageSource
+
+__all__ = ["ScoreReport", "VisitScore", "score", "score_replay"]
+
+_DECIMALS = 6
+
+
+def _round(value: float | None) -> float | None:
+    if value is None:
+        return None
+    rounded = round(float(value), _DECIMALS)
+    return 0.0 if rounded == 0 else rounded
+
+
+@dataclass(frozen=True)
+class VisitScore:
+    """One visit, predicted and true."""
+
+    visit: str
+    true_node: str
+    predicted_node: int
+    known: bool
+    outcome: str
+    similarity: float
+    margin: float | None
+    candidate: int | None
+    rotation_rad: float | None
+    true_rotation_rad: float | None
+    rotation_error_rad: float | None
+    latency_ms: float
+
+
+@dataclass(frozen=True)
+class ScoreReport:
+    """The score of one replay."""
+
+    log: str
+    integrity: str
+    threshold: float
+    visits: tuple[VisitScore, ...]
+    map_correct: bool
+    true_nodes: int
+    predicted_nodes: int
+
+    def counts(self) -> dict[str, int]:
+        """Decisions by outcome."""
+        names = ("correct_known", "correct_new", "false_merge", "false_new")
+        return {n: sum(1 for v in self.visits if v.outcome == n) for n in names}
+
+    def document(self, with_latency: bool = True) -> dict[str, Any]:
+        """The JSON document of ``pipemap score --json``. Everything but the latency
+        is deterministic; ``with_latency=False`` leaves it out (for comparisons)."""
+        seen: set[str] = set()
+        known_sims: list[float] = []
+        unknown_sims: list[float] = []
+        for i, v in enumerate(self.visits):
+            if v.true_node in seen:
+                known_sims.append(v.similarity)
+            elif i > 0:  # the first visit has nothing to compare with
+                unknown_sims.append(v.similarity)
+            seen.add(v.true_node)
+        errors = [
+            abs(v.rotation_error_rad) for v in self.visits if v.rotation_error_rad is not None
+        ]
+        doc: dict[str, Any] = {
+            "log": self.log,
+            "integrity": self.integrity,
+            "threshold": self.threshold,
+            "map_correct": self.map_correct,
+            "visits": len(self.visits),
+            "true_nodes": self.true_nodes,
+            "predicted_nodes": self.predicted_nodes,
+            "decisions": self.counts(),
+            "similarity": {"known": _summary(known_sims), "unknown": _summary(unknown_sims)},
+            "rotation_error_rad": {
+                "known": {
+                    "mean": _round(statistics.fmean(errors)) if errors else None,
+                    "max": _round(max(errors)) if errors else None,
+                    "n": len(errors),
+                }
+            },
+            "per_visit": [
+                {
+                    "visit": v.visit,
+                    "true_node": v.true_node,
+                    "predicted_node": v.predicted_node,
+                    "known": v.known,
+                    "outcome": v.outcome,
+                    "similarity": _round(v.similarity),
+                    "margin": _round(v.margin),
+                    "candidate": v.candidate,
+                    "rotation_rad": _round(v.rotation_rad),
+                    "true_rotation_rad": _round(v.true_rotation_rad),
+                    "rotation_error_rad": _round(v.rotation_error_rad),
+                }
+                for v in self.visits
+            ],
+        }
+        if with_latency:
+            latencies = [v.latency_ms for v in self.visits]
+            doc["latency_ms"] = {
+                "mean": round(statistics.fmean(latencies), 3) if latencies else None,
+                "max": round(max(latencies), 3) if latencies else None,
+            }
+        return doc
+
+    def csv_text(self) -> str:
+        """One row per visit, like evo's result tables."""
+        out = io.StringIO()
+        writer = csv.writer(out, lineterminator="\n")
+        fields = list(VisitScore.__dataclass_fields__)
+        writer.writerow(fields)
+        for v in self.visits:
+            row = []
+            for name in fields:
+                value = getattr(v, name)
+                row.append(_round(value) if isinstance(value, float) else value)
+            writer.writerow(["" if x is None else x for x in row])
+        return out.getvalue()
+
+    def json_text(self, with_latency: bool = True) -> str:
+        """Deterministic JSON text of :meth:`document` (latency aside)."""
+        return json.dumps(self.document(with_latency), indent=2, allow_nan=False) + "\n"
+
+
+def _summary(values: list[float]) -> dict[str, Any]:
+    if not values:
+        return {"mean": None, "std": None, "n": 0}
+    std = statistics.pstdev(values) if len(values) > 1 else 0.0
+    return {"mean": _round(statistics.fmean(values)), "std": _round(std), "n": len(values)}
+
+
+def _truth(source: MessageSource) -> dict[int, TrueSweep]:
+    truths = {}
+    for m in source.truth():
+        if m.topic == Topic.TRUE_SWEEP:
+            t = TrueSweep.FromString(m.data)
+            truths[t.sweep_id] = t
+    if not truths:
+        raise LogFormatError(f"{source.name}: no ground truth (/truth/sweep) to score against")
+    return truths
+
+
+def _map_correct(predicted: list[int], true: list[str]) -> bool:
+    """The predicted map is the true one under the visit correspondence: the same
+    visits to the same junctions (one map node per true node), so the same edges in
+    the same order."""
+    to_true: dict[int, str] = {}
+    to_predicted: dict[str, int] = {}
+    for p, t in zip(predicted, true, strict=True):
+        if to_true.setdefault(p, t) != t or to_predicted.setdefault(t, p) != p:
+            return False
+    order = {label: i for i, label in enumerate(dict.fromkeys(true))}
+    true_map = TopoMap()
+    for t in true:
+        true_map.visit(order[t])
+    first = {node: i for i, node in enumerate(dict.fromkeys(predicted))}
+    predicted_map = TopoMap()
+    for p in predicted:
+        predicted_map.visit(first[p])
+    relabel = {first[p]: order[t] for p, t in to_true.items()}
+    mapped = [(relabel[e.u], relabel[e.v], e.label) for e in predicted_map.edges()]
+    return mapped == [(e.u, e.v, e.label) for e in true_map.edges()]
+
+
+def score_replay(result: ReplayResult, source: MessageSource, threshold: float) -> ScoreReport:
+    """Compare a replay's decisions with the log's truth."""
+    truths = _truth(source)
+    created: dict[int, tuple[str, float]] = {}  # map node -> (true label, true heading)
+    seen: set[str] = set()
+    visits = []
+    for v in result.visits:
+        truth = truths.get(v.sweep_id)
+        if truth is None:
+            raise LogFormatError(f"{source.name}: no ground truth for sweep {v.sweep_id}")
+        d = v.decision
+        heading = truth.yaw_rad - _camera_angle(result, v.sweep_id)
+        if d.known:
+            right = created[d.node][0] == truth.node and truth.node in seen
+            outcome = "correct_known" if right else "false_merge"
+        else:
+            outcome = "false_new" if truth.node in seen else "correct_new"
+            created[d.node] = (truth.node, heading)
+        seen.add(truth.node)
+        estimate = true_turn = error = None
+        if d.match is not None and d.candidate is not None:
+            estimate = d.match.rotation_rad
+            if outcome == "correct_known":
+                # Rotation from this visit's heading to the candidate junction's stored sweep.
+                true_turn = wrap_angle_rad(created[d.candidate][1] - heading)
+                error = wrap_angle_rad(estimate - true_turn)
+        visits.append(
+            VisitScore(
+                visit=visit_label(v.visit_id),
+                true_node=truth.node,
+                predicted_node=d.node,
+                known=d.known,
+                outcome=outcome,
+                similarity=d.similarity,
+                margin=d.margin,
+                candidate=d.candidate,
+                rotation_rad=estimate,
+                true_rotation_rad=true_turn,
+                rotation_error_rad=error,
+                latency_ms=1000.0 * v.latency_s,
+            )
+        )
+    predicted = [v.predicted_node for v in visits]
+    true = [v.true_node for v in visits]
+    return ScoreReport(
+        log=source.name,
+        integrity=result.integrity.value,
+        threshold=threshold,
+        visits=tuple(visits),
+        map_correct=bool(visits) and _map_correct(predicted, true),
+        true_nodes=len(set(true)),
+        predicted_nodes=result.topomap.node_count,
+    )
+
+
+def _camera_angle(result: ReplayResult, sweep_id: int) -> float:
+    return result.camera_angles.get(sweep_id, 0.0)
+
+
+def score(source: MessageSource, config: LocalizerConfig | None = None) -> ScoreReport:
+    """Replay ``source`` and score the result against its truth."""
+    config = config if config is not None else LocalizerConfig()
+    result = replay(source, config)
+    return score_replay(result, source, config.threshold)

@@ -1,0 +1,109 @@
+"""Where a replay's messages come from: a log file, or a list in memory (tests).
+
+A source gives the ``/robot`` messages in the total order ``(log time, topic,
+sequence)``, never in file order, plus the log's run metadata and integrity. The
+``/truth`` messages are read only for scoring, by :meth:`LogSource.truth`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+from pipemap.errors import LogFormatError
+from recorder import METADATA_RUN, Integrity, LogMessage, Topic, read_log
+from recorder.topics import ROBOT_PREFIX
+
+__all__ = ["FileSource", "MemorySource", "MessageSource", "REQUIRED_TOPICS", "ordered"]
+
+#: A replay needs the camera: its images and the sweep commands that frame them.
+REQUIRED_TOPICS = (Topic.SWEEP, Topic.IMAGE)
+
+
+def ordered(messages: Sequence[LogMessage]) -> list[LogMessage]:
+    """The total order of replay: log time, then topic, then sequence."""
+    return sorted(messages, key=lambda m: (m.log_time_ns, m.topic, m.sequence))
+
+
+class MessageSource(Protocol):
+    """What a replay reads."""
+
+    @property
+    def name(self) -> str:
+        """A label for messages to the user (the file's path)."""
+        ...
+
+    def robot_messages(self) -> list[LogMessage]:
+        """Every ``/robot`` message, in the total order."""
+        ...
+
+    def run_metadata(self) -> dict[str, str]:
+        """The ``pipemap.run`` metadata record."""
+        ...
+
+    @property
+    def integrity(self) -> Integrity:
+        """Whether the log was read whole."""
+        ...
+
+    def truth(self) -> list[LogMessage]:
+        """Every ``/truth`` message, in the total order (for scoring only)."""
+        ...
+
+
+@dataclass
+class MemorySource:
+    """Messages held in memory."""
+
+    messages: list[LogMessage]
+    metadata: dict[str, str]
+    name: str = "<memory>"
+    integrity: Integrity = Integrity.OK
+
+    def robot_messages(self) -> list[LogMessage]:
+        return ordered([m for m in self.messages if m.topic.startswith(ROBOT_PREFIX)])
+
+    def run_metadata(self) -> dict[str, str]:
+        return dict(self.metadata)
+
+    def truth(self) -> list[LogMessage]:
+        return ordered([m for m in self.messages if m.topic.startswith("/truth/")])
+
+
+class FileSource:
+    """A log file, read once; the truth is kept apart and handed out only on request."""
+
+    def __init__(self, path: Path | str) -> None:
+        self.path = Path(path)
+        keep = (ROBOT_PREFIX, "/truth/")
+        self._contents = read_log(self.path, keep=lambda topic: topic.startswith(keep))
+        topics = {c.topic for c in self._contents.channels.values()}
+        missing = [t for t in REQUIRED_TOPICS if t not in topics]
+        if missing:
+            raise LogFormatError(f"{self.path}: no {', '.join(missing)} channel in this log")
+        if METADATA_RUN not in self._contents.metadata:
+            raise LogFormatError(f"{self.path}: no pipemap run metadata (cut before it?)")
+
+    @property
+    def name(self) -> str:
+        return str(self.path)
+
+    @property
+    def integrity(self) -> Integrity:
+        return self._contents.integrity
+
+    @property
+    def problem(self) -> str:
+        """What is wrong with the file, when its integrity is not ``ok``."""
+        return self._contents.problem
+
+    def robot_messages(self) -> list[LogMessage]:
+        return ordered([m for m in self._contents.messages if m.topic.startswith(ROBOT_PREFIX)])
+
+    def run_metadata(self) -> dict[str, str]:
+        return dict(self._contents.metadata[METADATA_RUN])
+
+    def truth(self) -> list[LogMessage]:
+        return ordered([m for m in self._contents.messages if m.topic.startswith("/truth/")])

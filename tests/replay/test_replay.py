@@ -1,0 +1,139 @@
+"""Replay: deterministic, blind to /truth and /online, equal to the online decisions."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from mcap.writer import Writer as McapWriter
+
+from localizer import dumps_document
+from recorder import METADATA_RUN, LogWriter, Topic, read_log, schemas
+from replay import FileSource, replay
+
+
+def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "pipemap", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+@pytest.fixture(scope="module")
+def robot_only(recorded_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A copy of the recorded run with every /truth and /online channel removed."""
+    contents = read_log(recorded_run)
+    path = tmp_path_factory.mktemp("stripped") / "robot_only.mcap"
+    with path.open("wb") as f, LogWriter(f, contents.metadata[METADATA_RUN]) as writer:
+        for m in contents.messages:
+            if m.topic.startswith("/robot/"):
+                writer.write_serialized(m.topic, m.log_time_ns, m.data)
+    assert read_log(path).counts[Topic.TRUE_SWEEP] == 0
+    return path
+
+
+def test_replay_twice_gives_identical_bytes(recorded_run: Path, tmp_path: Path) -> None:
+    first, second = tmp_path / "a.json", tmp_path / "b.json"
+    for target in (first, second):
+        done = pipemap("replay", str(recorded_run), "-o", str(target))
+        assert done.returncode == 0, done.stderr
+    assert first.read_bytes() == second.read_bytes()
+    doc = json.loads(first.read_text())
+    assert len(doc["visits"]) == 13 and doc["visits"][0]["set"] == "0001"
+
+
+def test_a_log_without_truth_and_online_replays_to_the_same_bytes(
+    recorded_run: Path, robot_only: Path
+) -> None:
+    full = dumps_document(replay(FileSource(recorded_run)).document())
+    blind = dumps_document(replay(FileSource(robot_only)).document())
+    assert blind == full
+
+
+def test_replay_equals_the_online_decisions(recorded_run: Path) -> None:
+    online = [
+        schemas.Decision.FromString(m.data)
+        for m in read_log(recorded_run).messages
+        if m.topic == Topic.DECISION
+    ]
+    replayed = replay(FileSource(recorded_run)).visits
+    assert [d.visit_id for d in online] == [v.visit_id for v in replayed]
+    for logged, ours in zip(online, replayed, strict=True):
+        d = ours.decision
+        assert (logged.node, logged.known) == (d.node, d.known)
+        assert logged.similarity == d.similarity
+        assert (logged.candidate if logged.HasField("candidate") else None) == d.candidate
+        assert (logged.margin if logged.HasField("margin") else None) == d.margin
+        assert [p.kind for p in logged.probes] == [p.request.kind.value for p in d.probes]
+
+
+def test_a_cut_log_replays_its_complete_part(recorded_run: Path, tmp_path: Path) -> None:
+    data = recorded_run.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) // 2])
+    done = pipemap("replay", str(cut))
+    assert done.returncode == 0, done.stderr
+    assert "cut short" in done.stderr and "Traceback" not in done.stderr
+    partial = json.loads(done.stdout)["visits"]
+    whole = replay(FileSource(recorded_run)).document()["visits"]
+    assert 0 < len(partial) < len(whole)
+    assert partial == whole[: len(partial)]
+
+
+def test_replay_settings_change_the_decisions(recorded_run: Path) -> None:
+    done = pipemap("replay", str(recorded_run), "--threshold", "-1")
+    assert done.returncode == 0, done.stderr
+    visits = json.loads(done.stdout)["visits"]
+    assert all(v["known"] for v in visits[1:])  # everything matches at -1
+    assert json.loads(done.stdout)["nodes"] == [{"id": 0}]
+
+
+def test_replay_writes_graphml_and_refuses_to_overwrite(recorded_run: Path, tmp_path: Path) -> None:
+    target, graph = tmp_path / "map.json", tmp_path / "map.graphml"
+    done = pipemap("replay", str(recorded_run), "-o", str(target), "--graphml", str(graph))
+    assert done.returncode == 0, done.stderr
+    assert "<graphml" in graph.read_text()
+    again = pipemap("replay", str(recorded_run), "-o", str(target))
+    assert again.returncode == 2 and "--force" in again.stderr
+
+
+def _foreign(path: Path) -> None:
+    with path.open("wb") as f:
+        writer = McapWriter(f)
+        writer.start(profile="", library="another-robot 2.0")
+        writer.finish()
+
+
+def _no_camera(path: Path) -> None:
+    with path.open("wb") as f:
+        writer = McapWriter(f)
+        writer.start(profile="", library="pipemap 0.1.0")
+        writer.add_metadata(METADATA_RUN, {"network": "paper"})
+        writer.finish()
+
+
+@pytest.mark.parametrize(
+    "make,message",
+    [
+        (lambda p: p.write_bytes(b"not a log"), "not an MCAP file"),
+        (lambda p: p.write_bytes(b""), "empty file"),
+        (_foreign, "written by another-robot 2.0"),
+        (_no_camera, "no /robot/camera/sweep, /robot/camera/image channel"),
+    ],
+)
+@pytest.mark.parametrize("command", ["replay", "score"])
+def test_bad_logs_get_one_line_and_exit_2(
+    tmp_path: Path, make: object, message: str, command: str
+) -> None:
+    path = tmp_path / "bad.mcap"
+    make(path)  # type: ignore[operator]
+    done = pipemap(command, str(path))
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and message in done.stderr
+
+
+def test_a_missing_log_gets_one_line(tmp_path: Path) -> None:
+    done = pipemap("replay", str(tmp_path / "nothing.mcap"))
+    assert done.returncode == 2 and "no such file" in done.stderr

@@ -1,0 +1,88 @@
+"""Scoring: outcomes, map correctness, and the score command's outputs."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from recorder import METADATA_RUN, LogWriter, read_log
+from replay.score import _map_correct
+
+
+def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "pipemap", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+@pytest.mark.parametrize(
+    "predicted,true,correct",
+    [
+        ([0, 1, 0, 2, 0], list("SASBA"), False),  # the last visit is A, not S
+        ([0, 1, 2, 1, 3], list("SABAC"), True),
+        ([0, 1, 2, 1, 0], list("SABAS"), True),
+        ([0, 1, 2, 1, 2], list("SABAC"), False),  # C merged into B
+        ([0, 1, 2, 3, 4], list("SABAC"), False),  # A's revisit made a duplicate
+        ([5, 7, 6, 7, 9], list("SABAC"), True),  # the ids need not be 0..n
+    ],
+)
+def test_map_correct_needs_one_map_node_per_true_node(
+    predicted: list[int], true: list[str], correct: bool
+) -> None:
+    assert _map_correct(predicted, true) is correct
+
+
+def test_score_reports_every_visit_against_the_truth(recorded_run: Path, tmp_path: Path) -> None:
+    results = tmp_path / "results"
+    done = pipemap("score", str(recorded_run), "--json", "--save-results", str(results))
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert [v["true_node"] for v in doc["per_visit"]] == list("SABACDCFCECAS")
+    assert sum(doc["decisions"].values()) == doc["visits"] == 13
+    assert doc["true_nodes"] == 7
+    for key in ("known", "unknown"):
+        assert set(doc["similarity"][key]) == {"mean", "std", "n"}
+    assert doc["similarity"]["known"]["n"] + doc["similarity"]["unknown"]["n"] == 12
+    assert set(doc["rotation_error_rad"]["known"]) == {"mean", "max", "n"}
+    assert doc["latency_ms"]["max"] >= doc["latency_ms"]["mean"] > 0
+    saved = json.loads((results / "score.json").read_text())
+    assert saved["decisions"] == doc["decisions"]
+    rows = list(csv.DictReader((results / "visits.csv").open()))
+    assert [r["true_node"] for r in rows] == list("SABACDCFCECAS")
+    # Correct known visits have a rotation error: within two pixels at 32 px (one
+    # pixel is 80/32 degrees, 0.044 rad).
+    for v in doc["per_visit"]:
+        if v["outcome"] == "correct_known":
+            assert abs(v["rotation_error_rad"]) < 2 * 0.0437
+
+
+def test_a_wrong_map_is_a_result_not_an_error(recorded_run: Path) -> None:
+    done = pipemap("score", str(recorded_run), "--json", "--threshold", "-1")
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert doc["map_correct"] is False
+    # Every visit is taken for the first junction, S: right only for the return to S.
+    assert doc["decisions"] == {
+        "correct_known": 1,
+        "correct_new": 1,
+        "false_merge": 11,
+        "false_new": 0,
+    }
+    text = pipemap("score", str(recorded_run), "--threshold", "-1")
+    assert text.returncode == 0 and "WRONG" in text.stdout
+
+
+def test_score_needs_the_truth(recorded_run: Path, tmp_path: Path) -> None:
+    contents = read_log(recorded_run)
+    blind = tmp_path / "blind.mcap"
+    with blind.open("wb") as f, LogWriter(f, contents.metadata[METADATA_RUN]) as writer:
+        for m in contents.messages:
+            if m.topic.startswith("/robot/"):
+                writer.write_serialized(m.topic, m.log_time_ns, m.data)
+    done = pipemap("score", str(blind))
+    assert done.returncode == 2 and "no ground truth" in done.stderr
