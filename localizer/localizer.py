@@ -206,6 +206,10 @@ class Localizer:
                 if improved:
                     best, sim, margin = p_best, p_sim, p_margin
                     match = p_matches[p_best] if p_best is not None else None
+                    if match is not None:
+                        # The probe's rotation is from the turned heading; report it
+                        # from the visit's own, as every other decision is.
+                        match = match.turned(request.yaw_rad)
                     break
         known = best is not None and sim >= self.config.threshold
         if known:

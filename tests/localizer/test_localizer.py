@@ -498,6 +498,25 @@ def test_probe_reaching_a_known_junction_stops_and_decides_known() -> None:
     assert loc.map.visits == (0, 1, 0)
 
 
+def test_a_probes_rotation_is_reported_from_the_visits_own_heading() -> None:
+    # The rotate probe turns the robot by its yaw; the probe sweep's match gives the
+    # rotation from the turned heading, so the decision adds the turn back.
+    loc = _strict_with(0, 1)
+    query = junction(0, roll=2, noise=1.0)  # two camera steps off, and weak
+    turned = junction(0)  # after turning by the estimate, lined up with the known sweep
+    after_turn = loc.compare(turned)[0]
+    probes = FakeProbes({ProbeKind.ROTATE: turned})
+    d = loc.localize(query, probes)
+    assert probes.kinds == [ProbeKind.ROTATE] and d.known and d.node == 0
+    yaw = probes.requests[0].yaw_rad
+    assert abs(yaw) > 0.1
+    assert d.match is not None
+    assert d.match.rotation_rad == pytest.approx(wrap_angle_rad(after_turn.rotation_rad + yaw))
+    assert d.match.rotation_pinhole_rad == pytest.approx(
+        wrap_angle_rad(after_turn.rotation_pinhole_rad + yaw)
+    )
+
+
 def test_probe_can_reveal_a_known_junction_for_a_new_looking_visit() -> None:
     loc = _strict_with(0, 1, 2)
     query = junction(3)  # looks new: weak against all three
