@@ -216,6 +216,23 @@ def build_parser() -> argparse.ArgumentParser:
                 help="write score.json and visits.csv to this new folder",
             )
 
+    p_exp = sub.add_parser(
+        "experiment",
+        help="reproduce the paper's experiments in the simulator",
+        description="Record, replay and score the runs of the paper's experiments (five "
+        "conditions, 6/9/18/36 images per sweep, seven autonomous starts) and write Table 1, "
+        "Table 2, Figures 6 and 7 and the starts as markdown, JSON and PNG.",
+    )
+    p_exp.add_argument("name", choices=["paper"], help="which experiment (paper)")
+    p_exp.add_argument("--out", required=True, metavar="DIR", help="folder for the results")
+    p_exp.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
+    p_exp.add_argument("--seed", type=_seed, default=0, help="seed of every run (0)")
+    p_exp.add_argument(
+        "--threshold", type=_threshold, default=0.36, help="known/new threshold (0.36)"
+    )
+    p_exp.add_argument("--keep-logs", action="store_true", help="keep every run's log in DIR/logs")
+    p_exp.add_argument("--force", action="store_true", help="replace earlier results in DIR")
+
     p_info = sub.add_parser(
         "info",
         help="describe a log: channels, counts, run settings, integrity",

@@ -8,7 +8,7 @@ a replay with the log's ground truth.
 from __future__ import annotations
 
 from replay.replayer import LoggedSweep, ReplayResult, VisitDecision, replay, sweeps_of
-from replay.score import ScoreReport, VisitScore, score, score_replay
+from replay.score import ScoreReport, VisitScore, score, score_replay, true_sweeps
 from replay.source import FileSource, MemorySource, MessageSource, ordered
 
 __all__ = [
@@ -25,4 +25,5 @@ __all__ = [
     "score",
     "score_replay",
     "sweeps_of",
+    "true_sweeps",
 ]

@@ -31,7 +31,7 @@ from recorder.schemas import TrueSweep
 from replay.replayer import ReplayResult, replay, visit_label
 from replay.source import MessageSource
 
-__all__ = ["ScoreReport", "VisitScore", "score", "score_replay"]
+__all__ = ["ScoreReport", "VisitScore", "score", "score_replay", "true_sweeps"]
 
 _DECIMALS = 6
 
@@ -161,7 +161,8 @@ def _summary(values: list[float]) -> dict[str, Any]:
     return {"mean": _round(statistics.fmean(values)), "std": _round(std), "n": len(values)}
 
 
-def _truth(source: MessageSource) -> dict[int, TrueSweep]:
+def true_sweeps(source: MessageSource) -> dict[int, TrueSweep]:
+    """The truth of every sweep of the log (``/truth/sweep``), by sweep id."""
     truths = {}
     for m in source.truth():
         if m.topic == Topic.TRUE_SWEEP:
@@ -196,7 +197,7 @@ def _map_correct(predicted: list[int], true: list[str]) -> bool:
 
 def score_replay(result: ReplayResult, source: MessageSource, threshold: float) -> ScoreReport:
     """Compare a replay's decisions with the log's truth."""
-    truths = _truth(source)
+    truths = true_sweeps(source)
     created: dict[int, tuple[str, float]] = {}  # map node -> (true label, true heading)
     seen: set[str] = set()
     visits = []

@@ -1,0 +1,99 @@
+"""``pipemap experiment paper``: pair statistics, the written results, the command."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from pipemap.experiment import CONDITIONS, IMAGE_COUNTS, STARTS, pair_statistics
+from pipemap.experiment_report import FILES
+from pipemap.plots import SAME, Box, box_plot
+from replay import FileSource
+
+
+def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "pipemap", *args], capture_output=True, text=True, timeout=1200
+    )
+
+
+def test_pairs_are_split_by_the_true_junction(recorded_run: Path) -> None:
+    pairs = pair_statistics(FileSource(recorded_run))
+    # The tour S A B A C D C F C E C A S: S twice, A three times, C four times.
+    assert len(pairs.same) == 1 + 3 + 6
+    assert len(pairs.different) == 13 * 12 // 2 - 10
+    assert len(pairs.rotation_errors_rad) == len(pairs.same)
+    assert all(0.0 <= e <= np.pi for e in pairs.rotation_errors_rad)
+    assert all(-1.0 <= s <= 1.0 for s in pairs.same + pairs.different)
+
+
+def test_a_box_plot_is_deterministic_and_draws_its_values() -> None:
+    groups = [("a", [Box([0.2, 0.5, 0.9], SAME, "x")]), ("b", [Box([], SAME)])]
+    first = box_plot(groups, "title", threshold=0.36)
+    second = box_plot(groups, "title", threshold=0.36)
+    assert np.array_equal(first, second)
+    assert (first == np.array(SAME, np.uint8)).all(axis=2).any()
+    blank = box_plot([("a", [Box([], SAME)])], "title")
+    assert not (blank == np.array(SAME, np.uint8)).all(axis=2).any()
+
+
+@pytest.fixture(scope="module")
+def experiment(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The whole experiment at 32 px (the command as users run it, small images)."""
+    out = tmp_path_factory.mktemp("experiment") / "results"
+    done = pipemap("experiment", "paper", "--out", str(out), "--resolution", "32")
+    assert done.returncode == 0, done.stderr
+    assert "[19/19]" in done.stderr and "starts" in done.stdout
+    return out
+
+
+def test_the_experiment_writes_every_table_and_figure(experiment: Path) -> None:
+    for name in FILES:
+        assert (experiment / name).stat().st_size > 0, name
+    doc = json.loads((experiment / "experiment.json").read_text())
+    assert doc["settings"] == {"resolution_px": 32, "seed": 0, "threshold": 0.36}
+    assert set(doc["conditions"]) == {"paper", "aligned"}
+    for runs in doc["conditions"].values():
+        assert list(runs) == list(CONDITIONS)
+        for run in runs.values():
+            assert run["visits"] == 13
+            assert run["pairs"]["same"]["n"] == 10 and run["pairs"]["different"]["n"] == 68
+    assert [int(n) for n in doc["images"]] == list(IMAGE_COUNTS)
+    assert [r["images_per_sweep"] for r in doc["images"].values()] == list(IMAGE_COUNTS)
+    assert list(doc["starts"]) == list(STARTS)
+    assert [r["start"] for r in doc["starts"].values()] == list(STARTS)
+    assert doc["paper"]["threshold"] == 0.36
+    text = (experiment / "experiment.md").read_text()
+    for heading in ("Table 1", "Table 2", "Figure 6", "Figure 7", "every start"):
+        assert heading in text
+    assert "0.700 ± 0.157" in text  # the paper's numbers, beside ours
+    for name in ("figure6_images.png", "figure7_similarity.png"):
+        image = cv2.imread(str(experiment / name))
+        assert image is not None and image.shape[2] == 3
+
+
+def test_the_experiment_refuses_to_replace_results(experiment: Path) -> None:
+    done = pipemap("experiment", "paper", "--out", str(experiment))
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "--force" in done.stderr
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["experiment", "nature", "--out", "x"], "invalid choice"),
+        (["experiment", "paper"], "--out"),
+        (["experiment", "paper", "--out", "/no/such/folder/x"], "does not exist"),
+        (["experiment", "paper", "--out", "x", "--resolution", "8"], "resolution"),
+    ],
+)
+def test_bad_experiment_arguments_get_one_line(args: list[str], message: str) -> None:
+    done = pipemap(*args)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and message in done.stderr
