@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from localizer import LocalizerConfig, pairwise_matches, wrap_angle_rad
+from localizer import LocalizerConfig
 from pipemap import __version__
 from recorder import RecordSettings, record_run
-from replay import FileSource, replay, score_replay, sweeps_of, true_sweeps
+from replay import FileSource, PairStatistics, replay, score_replay
 from sim.episode import Condition
 from sim.network import build_network
 
@@ -39,10 +39,8 @@ __all__ = [
     "IMAGE_COUNTS",
     "ExperimentResult",
     "ExperimentSettings",
-    "PairStatistics",
     "STARTS",
     "RunOutcome",
-    "pair_statistics",
     "paper_experiment",
     "summary",
 ]
@@ -59,16 +57,6 @@ class ExperimentSettings:
     resolution_px: int = 400
     seed: int = 0
     threshold: float = 0.36
-
-
-@dataclass(frozen=True)
-class PairStatistics:
-    """Every unordered pair of a run's visit sweeps (probe sweeps aside), by truth."""
-
-    same: tuple[float, ...]
-    different: tuple[float, ...]
-    #: ``|estimate - true|`` of the rotation between the headings, same-junction pairs.
-    rotation_errors_rad: tuple[float, ...]
 
 
 @dataclass(frozen=True)
@@ -110,30 +98,6 @@ def summary(values: tuple[float, ...] | list[float]) -> dict[str, Any]:
     }
 
 
-def pair_statistics(source: FileSource) -> PairStatistics:
-    """Similarity of every pair of visit sweeps of a log, split by the truth.
-
-    The rotation of a pair is the localizer's estimate of the turn from the first
-    visit's heading to the second's; its error is against the simulator's headings.
-    """
-    sweeps, _ = sweeps_of(source.robot_messages(), source.name)
-    truth = true_sweeps(source)
-    visits = [s for s in sweeps if s.probe is None]
-    headings = [truth[s.sweep_id].yaw_rad - s.images.camera_angle_rad for s in visits]
-    nodes = [truth[s.sweep_id].node for s in visits]
-    same: list[float] = []
-    different: list[float] = []
-    errors: list[float] = []
-    for (i, j), match in sorted(pairwise_matches([s.images for s in visits]).items()):
-        if nodes[i] == nodes[j]:
-            same.append(match.similarity)
-            true_turn = wrap_angle_rad(headings[j] - headings[i])
-            errors.append(abs(wrap_angle_rad(match.rotation_rad - true_turn)))
-        else:
-            different.append(match.similarity)
-    return PairStatistics(tuple(same), tuple(different), tuple(errors))
-
-
 def _run(
     folder: Path, name: str, record: RecordSettings, threshold: float, keep: bool
 ) -> RunOutcome:
@@ -144,9 +108,10 @@ def _run(
     wall = time.perf_counter() - start
     source = FileSource(path)
     result = replay(source, LocalizerConfig(threshold=threshold))
-    report = score_replay(result, source, threshold).document()
+    scored = score_replay(result, source, threshold)
+    report = scored.document()
     report["log"] = path.name
-    pairs = pair_statistics(source)
+    pairs = scored.pairs
     if not keep:
         path.unlink()
     return RunOutcome(

@@ -110,7 +110,7 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
     config = _config(args)
     source = _source(args, err)
     result = replay(source, config, _progress(err))
-    report = score_replay(result, source, config.threshold)
+    report = score_replay(result, source, config.threshold, config.fast)
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "score.json").write_text(report.json_text())
@@ -129,6 +129,8 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         f"decisions   {counts['correct_known']} correct known, {counts['correct_new']} correct "
         f"new, {counts['false_merge']} false merges, {counts['false_new']} false new",
         f"similarity  known {_stat(sim['known'])}; unknown {_stat(sim['unknown'])}",
+        f"pairs       same junction {_stat(doc['pairs']['same'])}; different "
+        f"{_stat(doc['pairs']['different'])}",
         f"rotation    error on correct known visits: mean {_num(rot['mean'])} rad, "
         f"max {_num(rot['max'])} rad (n={rot['n']})",
         f"latency     mean {_num(doc['latency_ms']['mean'])} ms, "

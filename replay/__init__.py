@@ -8,7 +8,15 @@ a replay with the log's ground truth.
 from __future__ import annotations
 
 from replay.replayer import LoggedSweep, ReplayResult, VisitDecision, replay, sweeps_of
-from replay.score import ScoreReport, VisitScore, score, score_replay, true_sweeps
+from replay.score import (
+    PairStatistics,
+    ScoreReport,
+    VisitScore,
+    pair_statistics,
+    score,
+    score_replay,
+    true_sweeps,
+)
 from replay.source import FileSource, MemorySource, MessageSource, ordered
 
 __all__ = [
@@ -16,11 +24,13 @@ __all__ = [
     "LoggedSweep",
     "MemorySource",
     "MessageSource",
+    "PairStatistics",
     "ReplayResult",
     "ScoreReport",
     "VisitDecision",
     "VisitScore",
     "ordered",
+    "pair_statistics",
     "replay",
     "score",
     "score_replay",

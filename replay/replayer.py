@@ -79,6 +79,8 @@ class ReplayResult:
     images: int = 0
     #: Camera angle of each sweep's first image relative to the robot (robot data).
     camera_angles: dict[int, float] = field(default_factory=dict)
+    #: The image set of each visit's own sweep (probes aside), by sweep id.
+    visit_sets: dict[int, ImageSet] = field(default_factory=dict)
 
     def document(self) -> dict[str, Any]:
         """The map document, in the format of ``pipemap map --json``."""
@@ -219,4 +221,5 @@ def replay(
         duration_ns=duration,
         images=sum(s.images.count for s in sweeps),
         camera_angles={s.sweep_id: s.images.camera_angle_rad for s in sweeps},
+        visit_sets={s.sweep_id: s.images for s in visits},
     )

@@ -24,14 +24,22 @@ import statistics
 from dataclasses import dataclass
 from typing import Any
 
-from localizer import LocalizerConfig, TopoMap, wrap_angle_rad
+from localizer import FastConfig, LocalizerConfig, TopoMap, pairwise_matches, wrap_angle_rad
 from pipemap.errors import LogFormatError
 from recorder import Topic
 from recorder.schemas import TrueSweep
 from replay.replayer import ReplayResult, replay, visit_label
 from replay.source import MessageSource
 
-__all__ = ["ScoreReport", "VisitScore", "score", "score_replay", "true_sweeps"]
+__all__ = [
+    "PairStatistics",
+    "ScoreReport",
+    "VisitScore",
+    "pair_statistics",
+    "score",
+    "score_replay",
+    "true_sweeps",
+]
 
 _DECIMALS = 6
 
@@ -62,6 +70,30 @@ class VisitScore:
 
 
 @dataclass(frozen=True)
+class PairStatistics:
+    """Every unordered pair of visit sweeps (probe sweeps aside), split by the truth:
+    the paper's Table 1 compares image sets this way."""
+
+    same: tuple[float, ...]
+    different: tuple[float, ...]
+    #: ``|estimate - true|`` of the rotation between the headings, same-junction pairs.
+    rotation_errors_rad: tuple[float, ...]
+
+    def document(self) -> dict[str, Any]:
+        """Mean, std and count of each kind of pair; mean and max rotation error."""
+        errors = self.rotation_errors_rad
+        return {
+            "same": _summary(list(self.same)),
+            "different": _summary(list(self.different)),
+            "rotation_error_rad": {
+                "mean": _round(statistics.fmean(errors)) if errors else None,
+                "max": _round(max(errors)) if errors else None,
+                "n": len(errors),
+            },
+        }
+
+
+@dataclass(frozen=True)
 class ScoreReport:
     """The score of one replay."""
 
@@ -72,6 +104,7 @@ class ScoreReport:
     map_correct: bool
     true_nodes: int
     predicted_nodes: int
+    pairs: PairStatistics
 
     def counts(self) -> dict[str, int]:
         """Decisions by outcome."""
@@ -103,6 +136,7 @@ class ScoreReport:
             "predicted_nodes": self.predicted_nodes,
             "decisions": self.counts(),
             "similarity": {"known": _summary(known_sims), "unknown": _summary(unknown_sims)},
+            "pairs": self.pairs.document(),
             "rotation_error_rad": {
                 "known": {
                     "mean": _round(statistics.fmean(errors)) if errors else None,
@@ -173,6 +207,31 @@ def true_sweeps(source: MessageSource) -> dict[int, TrueSweep]:
     return truths
 
 
+def pair_statistics(
+    result: ReplayResult, truths: dict[int, TrueSweep], fast: FastConfig | None = None
+) -> PairStatistics:
+    """Similarity of every pair of a replay's visit sweeps, split by the true junction.
+
+    The rotation of a pair is the localizer's estimate of the turn from the first
+    visit's heading to the second's; its error is against the simulator's headings.
+    """
+    ids = sorted(result.visit_sets)
+    sets = [result.visit_sets[i] for i in ids]
+    nodes = [truths[i].node for i in ids]
+    headings = [truths[i].yaw_rad - s.camera_angle_rad for i, s in zip(ids, sets, strict=True)]
+    same: list[float] = []
+    different: list[float] = []
+    errors: list[float] = []
+    for (i, j), match in sorted(pairwise_matches(sets, fast).items()):
+        if nodes[i] == nodes[j]:
+            same.append(match.similarity)
+            true_turn = wrap_angle_rad(headings[j] - headings[i])
+            errors.append(abs(wrap_angle_rad(match.rotation_rad - true_turn)))
+        else:
+            different.append(match.similarity)
+    return PairStatistics(tuple(same), tuple(different), tuple(errors))
+
+
 def _map_correct(predicted: list[int], true: list[str]) -> bool:
     """The predicted map is the true one under the visit correspondence: the same
     visits to the same junctions (one map node per true node), so the same edges in
@@ -195,8 +254,14 @@ def _map_correct(predicted: list[int], true: list[str]) -> bool:
     return mapped == [(e.u, e.v, e.label) for e in true_map.edges()]
 
 
-def score_replay(result: ReplayResult, source: MessageSource, threshold: float) -> ScoreReport:
-    """Compare a replay's decisions with the log's truth."""
+def score_replay(
+    result: ReplayResult,
+    source: MessageSource,
+    threshold: float,
+    fast: FastConfig | None = None,
+) -> ScoreReport:
+    """Compare a replay's decisions with the log's truth; ``fast`` is the matcher's
+    configuration for the pair statistics (the replay's own, by default)."""
     truths = true_sweeps(source)
     created: dict[int, tuple[str, float]] = {}  # map node -> (true label, true heading)
     seen: set[str] = set()
@@ -247,6 +312,7 @@ def score_replay(result: ReplayResult, source: MessageSource, threshold: float) 
         map_correct=bool(visits) and _map_correct(predicted, true),
         true_nodes=len(set(true)),
         predicted_nodes=result.topomap.node_count,
+        pairs=pair_statistics(result, truths, fast),
     )
 
 
@@ -258,4 +324,4 @@ def score(source: MessageSource, config: LocalizerConfig | None = None) -> Score
     """Replay ``source`` and score the result against its truth."""
     config = config if config is not None else LocalizerConfig()
     result = replay(source, config)
-    return score_replay(result, source, config.threshold)
+    return score_replay(result, source, config.threshold, config.fast)

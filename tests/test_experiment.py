@@ -11,10 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-from pipemap.experiment import CONDITIONS, IMAGE_COUNTS, STARTS, pair_statistics
+from pipemap.experiment import CONDITIONS, IMAGE_COUNTS, STARTS
 from pipemap.experiment_report import FILES
 from pipemap.plots import SAME, Box, box_plot
-from replay import FileSource
+from replay import FileSource, pair_statistics, replay, true_sweeps
 
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
@@ -24,7 +24,8 @@ def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_pairs_are_split_by_the_true_junction(recorded_run: Path) -> None:
-    pairs = pair_statistics(FileSource(recorded_run))
+    source = FileSource(recorded_run)
+    pairs = pair_statistics(replay(source), true_sweeps(source))
     # The tour S A B A C D C F C E C A S: S twice, A three times, C four times.
     assert len(pairs.same) == 1 + 3 + 6
     assert len(pairs.different) == 13 * 12 // 2 - 10
