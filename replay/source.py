@@ -85,6 +85,9 @@ class FileSource:
             raise LogFormatError(f"{self.path}: no {', '.join(missing)} channel in this log")
         if METADATA_RUN not in self._contents.metadata:
             raise LogFormatError(f"{self.path}: no pipemap run metadata (cut before it?)")
+        # Ordered once: a replay and then a view of it both ask.
+        self._robot: list[LogMessage] | None = None
+        self._truth: list[LogMessage] | None = None
 
     @property
     def name(self) -> str:
@@ -100,10 +103,16 @@ class FileSource:
         return self._contents.problem
 
     def robot_messages(self) -> list[LogMessage]:
-        return ordered([m for m in self._contents.messages if m.topic.startswith(ROBOT_PREFIX)])
+        if self._robot is None:
+            robot = [m for m in self._contents.messages if m.topic.startswith(ROBOT_PREFIX)]
+            self._robot = ordered(robot)
+        return list(self._robot)
 
     def run_metadata(self) -> dict[str, str]:
         return dict(self._contents.metadata[METADATA_RUN])
 
     def truth(self) -> list[LogMessage]:
-        return ordered([m for m in self._contents.messages if m.topic.startswith("/truth/")])
+        if self._truth is None:
+            truth = [m for m in self._contents.messages if m.topic.startswith("/truth/")]
+            self._truth = ordered(truth)
+        return list(self._truth)
