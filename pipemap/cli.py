@@ -46,6 +46,10 @@ def _run(argv: Sequence[str] | None) -> int:
         if args.command == "replay":
             return replay_commands.run_replay(args, sys.stdout, sys.stderr)
         return replay_commands.run_score(args, sys.stdout, sys.stderr)
+    if args.command == "view":
+        from pipemap.view_command import run_view
+
+        return run_view(args, sys.stdout, sys.stderr)
     raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other
 
 
