@@ -88,19 +88,25 @@ class Columns:
 
 def _varint(data: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The varints starting at ``pos`` and the positions after them."""
+    if pos.size and pos.max() >= len(data):
+        raise LogFormatError("a message ends before a varint")
+    first = data[pos]
+    if not np.any(first & 0x80):  # one byte each: field keys, small numbers
+        return first.astype(np.uint64), pos + 1
+    # Up to ten bytes of every varint at once; a varint ends at its first byte < 0x80.
+    at = np.minimum(pos[:, None] + np.arange(_MAX_VARINT_BYTES), len(data) - 1)
+    window = data[at]
+    last = (window & 0x80) == 0
+    if not np.all(last.any(axis=1)):
+        raise LogFormatError("a varint longer than 10 bytes")
+    length = np.argmax(last, axis=1) + 1
+    if np.any(pos + length > len(data)):
+        raise LogFormatError("a message ends inside a varint")
     value = np.zeros(len(pos), dtype=np.uint64)
-    after = pos.copy()
-    live = np.arange(len(pos))
-    for shift in range(0, 7 * _MAX_VARINT_BYTES, 7):
-        if after[live].max(initial=0) >= len(data):
-            raise LogFormatError("a message ends inside a varint")
-        byte = data[after[live]].astype(np.uint64)
-        value[live] |= (byte & np.uint64(0x7F)) << np.uint64(shift)
-        after[live] += 1
-        live = live[(byte & np.uint64(0x80)) != 0]
-        if live.size == 0:
-            return value, after
-    raise LogFormatError("a varint longer than 10 bytes")
+    for k in range(int(length.max())):
+        part = np.where(k < length, window[:, k] & 0x7F, 0).astype(np.uint64)
+        value |= part << np.uint64(7 * k)
+    return value, pos + length
 
 
 def _fixed(data: np.ndarray, pos: np.ndarray, dtype: str) -> np.ndarray:
@@ -138,10 +144,10 @@ def _decode(
     active = np.nonzero(pos < ends)[0]
     while active.size:
         key, after = _varint(data, pos[active])
-        keys = np.unique(key)
-        for k in keys.tolist():
+        same = key.min() == key.max()  # the usual case: every message has the same next field
+        for k in [int(key[0])] if same else np.unique(key).tolist():
             number, wire = k >> 3, k & 7
-            if len(keys) == 1:  # the usual case: every message has the same next field
+            if same:
                 at, q = active, after
             else:
                 chosen = key == k
