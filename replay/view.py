@@ -22,13 +22,12 @@ from __future__ import annotations
 import json
 import os
 import uuid
-from collections import defaultdict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from localizer import TopoMap
 from pipemap.errors import InputError
-from recorder import LogMessage
+from recorder.topics import ROBOT_PREFIX
 from replay.replayer import ReplayResult, VisitDecision, visit_label
 from replay.source import MessageSource
 from replay.view_blueprint import view_blueprint
@@ -117,18 +116,11 @@ def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
         rec.log("log/decisions", rr.TextLog(describe_decision(v), level=level))
 
 
-def _by_topic(messages: list[LogMessage]) -> dict[str, list[LogMessage]]:
-    topics: defaultdict[str, list[LogMessage]] = defaultdict(list)
-    for m in messages:
-        topics[m.topic].append(m)
-    return topics
-
-
 def log_view(rec: rr.RecordingStream, source: MessageSource, result: ReplayResult) -> None:
     """Log everything a view shows of ``source`` and its replay ``result`` to ``rec``."""
     geometry = RobotGeometry.from_run(source.run_metadata())
-    log_truth(rec, _by_topic(source.truth()))
-    log_robot(rec, _by_topic(source.robot_messages()), geometry)
+    log_robot(rec, source.by_topic(ROBOT_PREFIX), geometry)
+    log_truth(rec, source.by_topic("/truth/"))
     _log_map(rec, result)
 
 

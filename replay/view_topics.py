@@ -95,17 +95,26 @@ def set_time(rec: rr.RecordingStream, time_ns: int) -> None:
 def _columns(
     messages: list[LogMessage], message_type: Any, *names: str
 ) -> tuple[np.ndarray, Columns]:
-    """Log times (int ns) and the fields ``names`` of ``messages``, as columns."""
+    """Log times (int ns) and the fields ``names`` of ``messages``, as columns in the
+    order of time (file order is not trusted)."""
     times = np.fromiter(map(_LOG_TIME, messages), dtype=np.int64, count=len(messages))
+    if np.any(times[1:] < times[:-1]):
+        order = np.argsort(times, kind="stable")
+        times, messages = times[order], [messages[i] for i in order]
     spec = spec_of(message_type.DESCRIPTOR, only=names)
     return times, decode_columns(list(map(_DATA, messages)), spec)
 
 
-def _scalars(rec: rr.RecordingStream, entity: str, times: np.ndarray, values: np.ndarray) -> None:
+def _series(
+    rec: rr.RecordingStream, entity: str, times: np.ndarray, columns: Columns, *names: str
+) -> None:
+    """The fields ``names`` as the series of one time-series entity, named after them."""
     import rerun as rr
 
-    column = rr.Scalars.columns(scalars=values)
-    rec.send_columns(entity, indexes=[time_column(times)], columns=column)
+    values = np.stack([columns[name].astype(np.float64) for name in names], axis=1)
+    data = rr.Scalars.columns(scalars=values.reshape(-1)).partition([len(names)] * len(times))
+    rec.send_columns(entity, indexes=[time_column(times)], columns=data)
+    rec.log(entity, rr.SeriesLines(names=list(names)), static=True)
 
 
 def log_truth(rec: rr.RecordingStream, truth: dict[str, list[LogMessage]]) -> None:
@@ -168,8 +177,7 @@ def _log_ranges(
         return
     names = ("front_m", "front_left_m", "front_right_m")
     times, c = _columns(messages, Ranges, *names)
-    for name in names:
-        _scalars(rec, f"sensors/tof/{name}", times, c[name])
+    _series(rec, "sensors/tof/range_m", times, c, *names)
     values = np.stack([c[name] for name in names], axis=1)
     angles = np.asarray(geometry.tof_angles_rad[:3], dtype=np.float64)
     directions = np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
@@ -188,15 +196,16 @@ def _log_ranges(
 
 
 def _log_body(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) -> None:
-    streams = (
-        (Topic.IMU, Imu, "imu", ("yaw_rate_rps", "accel_forward_mps2", "accel_left_mps2")),
-        (Topic.WHEELS, WheelEncoders, "wheels", ("left_ticks", "right_ticks")),
-    )
-    for topic, message_type, entity, names in streams:
-        if messages.get(topic):
-            times, c = _columns(messages[topic], message_type, *names)
-            for name in names:
-                _scalars(rec, f"sensors/{entity}/{name}", times, c[name].astype(np.float64))
+    imu, wheels = messages.get(Topic.IMU), messages.get(Topic.WHEELS)
+    if imu:
+        accel = ("accel_forward_mps2", "accel_left_mps2")
+        times, c = _columns(imu, Imu, "yaw_rate_rps", *accel)
+        _series(rec, "sensors/imu/yaw_rate_rps", times, c, "yaw_rate_rps")
+        _series(rec, "sensors/imu/accel_mps2", times, c, *accel)
+    if wheels:
+        ticks = ("left_ticks", "right_ticks")
+        times, c = _columns(wheels, WheelEncoders, *ticks)
+        _series(rec, "sensors/wheels/ticks", times, c, *ticks)
 
 
 def _log_controller(rec: rr.RecordingStream, messages: list[LogMessage]) -> None:
@@ -205,8 +214,8 @@ def _log_controller(rec: rr.RecordingStream, messages: list[LogMessage]) -> None
     if not messages:
         return
     times, c = _columns(messages, ControllerState, "state", "linear_mps", "angular_rps")
-    _scalars(rec, "controller/linear_mps", times, c["linear_mps"])
-    _scalars(rec, "controller/angular_rps", times, c["angular_rps"])
+    _series(rec, "controller/linear_mps", times, c, "linear_mps")
+    _series(rec, "controller/angular_rps", times, c, "angular_rps")
     # The state as text each time it changes: a line per control step would drown the log.
     changes = c.changes("state")
     texts = [f"controller: {state}" for state in c.strings("state", changes)]
@@ -255,21 +264,27 @@ def _log_camera(
 def _log_events(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) -> None:
     import rerun as rr
 
+    rows: list[tuple[int, str, str]] = []
     for m in messages.get(Topic.EVENTS, []):
         event = Log.FromString(m.data)
-        set_time(rec, m.log_time_ns)
         level = "WARN" if event.level >= Log.Level.WARNING else "INFO"
-        rec.log("log/events", rr.TextLog(event.message, level=level))
+        rows.append((m.log_time_ns, event.message, level))
     for m in messages.get(Topic.NODE, []):
         node = NodeEvent.FromString(m.data)
-        set_time(rec, m.log_time_ns)
         if node.kind == NodeEvent.ARRIVAL:
             text = f"visit {node.visit_id}: arrived at a node"
         else:
-            text = (
-                f"visit {node.visit_id}: left by the exit at {math.degrees(node.exit_rad):+.0f} deg"
-            )
-        rec.log("log/events", rr.TextLog(text, level="INFO"))
+            turn = math.degrees(node.exit_rad)
+            text = f"visit {node.visit_id}: left by the exit at {turn:+.0f} deg"
+        rows.append((m.log_time_ns, text, "INFO"))
+    if rows:
+        rows.sort(key=lambda row: row[0])
+        times, texts, levels = zip(*rows, strict=True)
+        rec.send_columns(
+            "log/events",
+            indexes=[time_column(times)],
+            columns=rr.TextLog.columns(text=texts, level=levels),
+        )
 
 
 def log_robot(
@@ -281,8 +296,10 @@ def log_robot(
     half = (geometry.length_m / 2, geometry.width_m / 2, geometry.tof_height_m / 2)
     body = rr.Boxes3D(half_sizes=[half], centers=[(0.0, 0.0, half[2])], colors=(200, 200, 200))
     rec.log("world/robot/body", body, static=True)
+    # The images first: rerun encodes and writes them in its own threads while the
+    # other streams are decoded here.
+    _log_camera(rec, messages, geometry)
     _log_ranges(rec, messages.get(Topic.RANGES, []), geometry)
     _log_body(rec, messages)
     _log_controller(rec, messages.get(Topic.CONTROLLER, []))
-    _log_camera(rec, messages, geometry)
     _log_events(rec, messages)

@@ -8,6 +8,7 @@ The recording is saved once per module from the shared 32 px run and checked wit
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from collections import defaultdict
@@ -18,7 +19,7 @@ import pytest
 
 from pipemap.cli import main
 from recorder import Topic, read_log
-from recorder.schemas import CompressedImage
+from recorder.schemas import CompressedImage, Ranges
 from replay import FileSource, replay
 from replay.view import save_view
 from tests.logs import rerun_cli
@@ -91,14 +92,19 @@ def test_every_image_pose_and_sample_is_there(
     counts = read_log(recorded_run).counts
     assert rows(chunks, "/camera/image", "EncodedImage:blob") == counts[Topic.IMAGE] == 78
     assert rows(chunks, "/world/robot", "Transform3D:translation") == counts[Topic.TRUE_POSE]
-    for name in ("front_m", "front_left_m", "front_right_m"):
-        assert rows(chunks, f"/sensors/tof/{name}", "Scalars:scalars") == counts[Topic.RANGES]
+    series = {
+        "/sensors/tof/range_m": (Topic.RANGES, 3),
+        "/sensors/imu/yaw_rate_rps": (Topic.IMU, 1),
+        "/sensors/imu/accel_mps2": (Topic.IMU, 2),
+        "/sensors/wheels/ticks": (Topic.WHEELS, 2),
+        "/controller/linear_mps": (Topic.CONTROLLER, 1),
+        "/controller/angular_rps": (Topic.CONTROLLER, 1),
+    }
+    for entity, (topic, width) in series.items():
+        values = column(chunks, entity, "Scalars:scalars")
+        assert len(values) == counts[topic], entity
+        assert {len(v) for v in values} == {width}, entity
     assert rows(chunks, "/world/robot/tof", "Arrows3D:vectors") == counts[Topic.RANGES]
-    for name in ("yaw_rate_rps", "accel_forward_mps2", "accel_left_mps2"):
-        assert rows(chunks, f"/sensors/imu/{name}", "Scalars:scalars") == counts[Topic.IMU]
-    for name in ("left_ticks", "right_ticks"):
-        assert rows(chunks, f"/sensors/wheels/{name}", "Scalars:scalars") == counts[Topic.WHEELS]
-    assert rows(chunks, "/controller/linear_mps", "Scalars:scalars") == counts[Topic.CONTROLLER]
     # One camera direction per sweep START and IMAGE, an empty one at each END.
     assert rows(chunks, "/world/robot/camera", "Arrows3D:vectors") == counts[Topic.SWEEP]
     assert 0 < rows(chunks, "/log/controller", "TextLog:text") < counts[Topic.CONTROLLER] / 10
@@ -106,6 +112,20 @@ def test_every_image_pose_and_sample_is_there(
     static = [c for c in chunks["/world/network/nodes"] if c.is_static]
     labels = static[0].to_record_batch().column("Points3D:labels").to_pylist()[0]
     assert sorted(labels) == ["A", "B", "C", "D", "E", "F", "S"]
+
+
+def test_range_rays_are_as_long_as_the_ranges(
+    recorded_run: Path, chunks: dict[str, list[Any]]
+) -> None:
+    logged = [m for m in read_log(recorded_run).messages if m.topic == Topic.RANGES]
+    first = Ranges.FromString(logged[0].data)
+    rays = column(chunks, "/world/robot/tof", "Arrows3D:vectors")[0]
+    lengths = [math.hypot(*ray) for ray in rays]
+    expected = [first.front_m, first.front_left_m, first.front_right_m]
+    assert lengths == pytest.approx(expected, abs=1e-6)
+    # front, then 40 degrees to the left, then 40 degrees to the right
+    angles = [math.degrees(math.atan2(ray[1], ray[0])) for ray in rays]
+    assert angles == pytest.approx([0.0, 40.0, -40.0], abs=1e-3)
 
 
 def test_images_are_the_logged_pngs_at_their_log_times(
