@@ -14,11 +14,12 @@ read and replayed was tried and saved nothing (the import holds the GIL).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import TextIO
 
-from pipemap.errors import InputError
+from pipemap.errors import InputError, ViewerError
 from pipemap.replay_commands import (
     check_output,
     localizer_config,
@@ -30,6 +31,7 @@ __all__ = ["run_view"]
 
 #: The file suffix rerun gives its recordings; another one is most likely a slip.
 RRD_SUFFIX = ".rrd"
+_DISPLAY_VARIABLES = ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")
 
 
 def _target(args: argparse.Namespace) -> Path | None:
@@ -39,9 +41,23 @@ def _target(args: argparse.Namespace) -> Path | None:
     return target
 
 
+def _check_display() -> None:
+    """The viewer is a window: on Linux without X11 or Wayland it cannot open (and rerun
+    would wait some 20 s to say so)."""
+    if not sys.platform.startswith("linux"):
+        return
+    if not any(os.environ.get(name) for name in _DISPLAY_VARIABLES):
+        raise ViewerError(
+            "no display for the rerun viewer (DISPLAY and WAYLAND_DISPLAY are unset); "
+            "save the recording with --save OUT.rrd and open it with rerun OUT.rrd elsewhere"
+        )
+
+
 def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log and show it in rerun, or save the recording with ``--save``."""
     target = _target(args)
+    if target is None:
+        _check_display()
     config = localizer_config(args)
 
     from replay import replay

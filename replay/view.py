@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from localizer import TopoMap
-from pipemap.errors import InputError
+from pipemap.errors import InputError, ViewerError
 from recorder.topics import ROBOT_PREFIX
 from replay.replayer import ReplayResult, VisitDecision, visit_label
 from replay.source import MessageSource
@@ -150,5 +150,9 @@ def spawn_view(source: MessageSource, result: ReplayResult) -> None:
     rec = _recording(source)
     rec.spawn(default_blueprint=view_blueprint())
     log_view(rec, source, result)
-    rec.flush()
-    rec.disconnect()
+    try:
+        rec.flush()
+    except RuntimeError as exc:  # rerun's report of a viewer it cannot reach
+        raise ViewerError(f"the rerun viewer did not take the recording ({exc})") from None
+    finally:
+        rec.disconnect()

@@ -198,11 +198,19 @@ def run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str, s
         ("exists", "exists; refusing to overwrite without --force"),
         ("suffix", "a rerun recording is saved as a .rrd file"),
         ("no_folder", "does not exist"),
+        ("no_display", "no display for the rerun viewer"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(
-    case: str, expected: str, recorded_run: Path, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+    case: str,
+    expected: str,
+    recorded_run: Path,
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
+    for variable in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
+        monkeypatch.delenv(variable, raising=False)
     not_mcap = tmp_path / "notes.mcap"
     not_mcap.write_text("not a log\n")
     existing = tmp_path / "old.rrd"
@@ -215,6 +223,7 @@ def test_bad_input_is_one_line_and_exit_2(
         "exists": [log, "--save", str(existing)],
         "suffix": [log, "--save", str(tmp_path / "new.mcap")],
         "no_folder": [log, "--save", str(tmp_path / "absent" / "new.rrd")],
+        "no_display": [log],
     }[case]
     status, stdout, stderr = run(["view", *argv], capfd)
     assert status == 2
