@@ -50,6 +50,10 @@ def _run(argv: Sequence[str] | None) -> int:
         from pipemap.experiment_command import run_experiment
 
         return run_experiment(args, sys.stdout, sys.stderr)
+    if args.command == "view":
+        from pipemap.view_command import run_view
+
+        return run_view(args, sys.stdout, sys.stderr)
     raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other
 
 

@@ -7,7 +7,14 @@ exits with status 2. Any other exception is a bug and keeps its traceback.
 
 from __future__ import annotations
 
-__all__ = ["InputError", "LocalizerError", "LogFormatError", "PipemapError", "SimError"]
+__all__ = [
+    "InputError",
+    "LocalizerError",
+    "LogFormatError",
+    "PipemapError",
+    "SimError",
+    "ViewerError",
+]
 
 
 class PipemapError(Exception):
@@ -28,3 +35,7 @@ class SimError(PipemapError):
 
 class LogFormatError(PipemapError):
     """A log file is missing, is not an MCAP file, or is not a pipemap log."""
+
+
+class ViewerError(PipemapError):
+    """The rerun viewer cannot be started or reached (no display, no connection)."""

@@ -177,6 +177,14 @@ def build_parser() -> argparse.ArgumentParser:
             "replay a log and score the map against its ground truth",
             "Replay a log and compare every decision and the map with the log's /truth.",
         ),
+        (
+            "view",
+            "show a log and its replay in the rerun viewer, or save them as .rrd",
+            "Replay a log and show it in rerun on its simulated time: the network, the "
+            "robot's true pose and trajectory, range rays, camera direction and images, "
+            "sensor signals, controller states and the topological map as it grows, with "
+            "each decision. Opens the viewer, or with --save writes a recording file.",
+        ),
     ):
         p_log = sub.add_parser(name, help=helptext, description=description)
         p_log.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
@@ -207,6 +215,14 @@ def build_parser() -> argparse.ArgumentParser:
                 help="also write the map as GraphML",
             )
             p_log.add_argument("--force", action="store_true", help="overwrite existing files")
+        elif name == "view":
+            p_log.add_argument(
+                "--save",
+                default=None,
+                metavar="OUT.rrd",
+                help="write the recording to this file instead of opening the viewer",
+            )
+            p_log.add_argument("--force", action="store_true", help="overwrite an existing file")
         else:
             p_log.add_argument("--json", action="store_true", help="print one JSON object")
             p_log.add_argument(

@@ -14,10 +14,18 @@ from typing import Any, TextIO
 
 from pipemap.errors import InputError
 
-__all__ = ["run_replay", "run_score"]
+__all__ = [
+    "check_output",
+    "localizer_config",
+    "open_source",
+    "progress_printer",
+    "run_replay",
+    "run_score",
+]
 
 
-def _config(args: argparse.Namespace) -> Any:
+def localizer_config(args: argparse.Namespace) -> Any:
+    """The localizer's settings from ``--threshold``, ``--no-active-vision``, ``--downsample``."""
     from localizer import FastConfig, LocalizerConfig
 
     fast = FastConfig() if args.downsample is None else FastConfig(fine_downsample=args.downsample)
@@ -26,7 +34,8 @@ def _config(args: argparse.Namespace) -> Any:
     )
 
 
-def _source(args: argparse.Namespace, err: TextIO) -> Any:
+def open_source(args: argparse.Namespace, err: TextIO) -> Any:
+    """The log ``args.log`` as a replay source; warns on ``err`` when it is cut or damaged."""
     from recorder import Integrity
     from replay import FileSource
 
@@ -44,7 +53,8 @@ def _source(args: argparse.Namespace, err: TextIO) -> Any:
     return source
 
 
-def _progress(err: TextIO) -> Any:
+def progress_printer(err: TextIO) -> Any:
+    """A replay progress callback that writes to ``err`` when it is a terminal, else ``None``."""
     if not err.isatty():
         return None
 
@@ -57,7 +67,8 @@ def _progress(err: TextIO) -> Any:
     return show
 
 
-def _check_output(path: str | None, force: bool) -> Path | None:
+def check_output(path: str | None, force: bool) -> Path | None:
+    """``path`` as a file that may be written (refused if it exists, unless ``force``)."""
     if path is None:
         return None
     target = Path(path)
@@ -77,11 +88,11 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from localizer import dumps_document
     from replay import replay
 
-    target = _check_output(args.output, args.force)
-    graphml = _check_output(args.graphml, args.force)
-    config = _config(args)
-    source = _source(args, err)
-    result = replay(source, config, _progress(err))
+    target = check_output(args.output, args.force)
+    graphml = check_output(args.graphml, args.force)
+    config = localizer_config(args)
+    source = open_source(args, err)
+    result = replay(source, config, progress_printer(err))
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
     text = dumps_document(result.document())
@@ -107,9 +118,9 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         folder = Path(args.save_results)
         if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
             raise InputError(f"{folder}: exists and is not an empty folder; refusing to overwrite")
-    config = _config(args)
-    source = _source(args, err)
-    result = replay(source, config, _progress(err))
+    config = localizer_config(args)
+    source = open_source(args, err)
+    result = replay(source, config, progress_printer(err))
     report = score_replay(result, source, config.threshold, config.fast)
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)

@@ -7,7 +7,8 @@ sequence)``, never in file order, plus the log's run metadata and integrity. The
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections import defaultdict
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -52,6 +53,11 @@ class MessageSource(Protocol):
         """Every ``/truth`` message, in the total order (for scoring only)."""
         ...
 
+    def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
+        """The messages of every topic under ``prefix``, by topic, in file order
+        (for viewing, which orders each topic by time itself)."""
+        ...
+
 
 @dataclass
 class MemorySource:
@@ -71,6 +77,9 @@ class MemorySource:
     def truth(self) -> list[LogMessage]:
         return ordered([m for m in self.messages if m.topic.startswith("/truth/")])
 
+    def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
+        return _grouped(m for m in self.messages if m.topic.startswith(prefix))
+
 
 class FileSource:
     """A log file, read once; the truth is kept apart and handed out only on request."""
@@ -85,6 +94,11 @@ class FileSource:
             raise LogFormatError(f"{self.path}: no {', '.join(missing)} channel in this log")
         if METADATA_RUN not in self._contents.metadata:
             raise LogFormatError(f"{self.path}: no pipemap run metadata (cut before it?)")
+        # Grouped by topic in one pass (a view wants the topics apart, a replay the
+        # /robot ones together), and put in order once: a replay and a view both ask.
+        self._topics = _grouped(self._contents.messages)
+        self._robot: list[LogMessage] | None = None
+        self._truth: list[LogMessage] | None = None
 
     @property
     def name(self) -> str:
@@ -100,10 +114,28 @@ class FileSource:
         return self._contents.problem
 
     def robot_messages(self) -> list[LogMessage]:
-        return ordered([m for m in self._contents.messages if m.topic.startswith(ROBOT_PREFIX)])
+        if self._robot is None:
+            self._robot = ordered(_joined(self.by_topic(ROBOT_PREFIX)))
+        return list(self._robot)
 
     def run_metadata(self) -> dict[str, str]:
         return dict(self._contents.metadata[METADATA_RUN])
 
     def truth(self) -> list[LogMessage]:
-        return ordered([m for m in self._contents.messages if m.topic.startswith("/truth/")])
+        if self._truth is None:
+            self._truth = ordered(_joined(self.by_topic("/truth/")))
+        return list(self._truth)
+
+    def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
+        return {t: list(ms) for t, ms in self._topics.items() if t.startswith(prefix)}
+
+
+def _grouped(messages: Iterable[LogMessage]) -> dict[str, list[LogMessage]]:
+    topics: defaultdict[str, list[LogMessage]] = defaultdict(list)
+    for m in messages:
+        topics[m.topic].append(m)
+    return dict(topics)
+
+
+def _joined(topics: dict[str, list[LogMessage]]) -> list[LogMessage]:
+    return [m for messages in topics.values() for m in messages]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -23,6 +25,14 @@ def record(output: Path, *extra: str) -> subprocess.CompletedProcess[str]:
         text=True,
         timeout=600,
     )
+
+
+def rerun_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """The ``rerun`` command of rerun-sdk, without analytics (no network, no banner)."""
+    found = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+    assert Path(found).exists(), "the rerun CLI of rerun-sdk is not installed"
+    env = {**os.environ, "RERUN_ANALYTICS": "false"}
+    return subprocess.run([found, *args], capture_output=True, text=True, timeout=300, env=env)
 
 
 def write_synthetic_log(path: Path, messages: int = 600, chunk_bytes: int = 4096) -> list[str]:

@@ -1,0 +1,158 @@
+"""A log and a replay of it as one rerun recording, on simulated time.
+
+The recording has a single timeline, ``sim_time``, taken from log time: rerun's
+wall-clock ``log_time`` and ``log_tick`` are switched off, no recording
+properties (which hold a start time) are sent, and the recording id is derived
+from the run's metadata. So the same log and settings give the same recording,
+as ``rerun rrd compare`` sees it. What it shows:
+
+* ``world/``: the network (truth), the robot's true pose, body and trajectory,
+  its three range rays and the camera's direction during sweeps;
+* ``camera/image``: every camera image, when it was taken;
+* ``sensors/``, ``controller/``: ranges, IMU, wheels, commands as time series;
+* ``map``: the replay's topological map, growing at each decision's time;
+* ``log/``: decisions (similarity, margin, known or new, probes), controller
+  states and events.
+
+rerun is imported inside the functions, so importing this module is cheap.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import uuid
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from localizer import TopoMap
+from pipemap.errors import InputError, ViewerError
+from recorder.topics import ROBOT_PREFIX
+from replay.replayer import ReplayResult, VisitDecision, visit_label
+from replay.source import MessageSource
+from replay.view_blueprint import view_blueprint
+from replay.view_topics import RobotGeometry, log_robot, log_truth, set_time
+
+if TYPE_CHECKING:
+    import rerun as rr
+
+__all__ = ["APPLICATION_ID", "describe_decision", "log_view", "save_view", "spawn_view"]
+
+APPLICATION_ID = "pipemap"
+_NAMESPACE = uuid.UUID("5f1d2c1e-8f0b-4a8e-9d4e-70697065de4d")
+_NODE = (150, 150, 150)
+_NODE_NOW = (255, 140, 0)
+
+
+def _recording_id(source: MessageSource) -> str:
+    """The same for every view of one log: a name-based UUID of the run's metadata."""
+    run = json.dumps(source.run_metadata(), sort_keys=True)
+    return str(uuid.uuid5(_NAMESPACE, run))
+
+
+def _recording(source: MessageSource) -> rr.RecordingStream:
+    import rerun as rr
+
+    # No properties: they would carry the wall-clock start of the recording.
+    rec = rr.RecordingStream(
+        APPLICATION_ID, recording_id=_recording_id(source), send_properties=False
+    )
+    rec.set_log_time_enabled(False)
+    rec.set_log_tick_enabled(False)
+    return rec
+
+
+def _num(value: float | None, fmt: str = ".3f") -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def describe_decision(visit: VisitDecision) -> str:
+    """One line for a visit's decision: node, known or new, similarity, margin, probes."""
+    d = visit.decision
+    parts = [
+        f"visit {visit_label(visit.visit_id)} -> node {d.node}",
+        "known" if d.known else "new",
+        f"similarity {d.similarity:.3f}",
+        f"margin {_num(d.margin)}",
+        f"candidate {'-' if d.candidate is None else d.candidate}",
+    ]
+    if d.match is not None:
+        parts.append(f"rotation {d.match.rotation_rad:+.3f} rad")
+    if d.probes:
+        probes = []
+        for p in d.probes:
+            if p.similarity is None:
+                probes.append(f"{p.request.kind.value} not in log")
+            else:
+                better = " (improved)" if p.improved else ""
+                probes.append(f"{p.request.kind.value} {p.similarity:.3f}{better}")
+        parts.append("probes: " + ", ".join(probes))
+    else:
+        parts.append("no probes")
+    return "; ".join(parts)
+
+
+def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
+    """The map as it grows, and each decision as text, at the time of the decision."""
+    import rerun as rr
+
+    topomap = TopoMap()
+    visits: dict[int, list[str]] = {}
+    for v in result.visits:
+        node = v.decision.node
+        topomap.visit(node)
+        visits.setdefault(node, []).append(visit_label(v.visit_id))
+        set_time(rec, v.time_ns)
+        ids = [str(n) for n in range(topomap.node_count)]
+        labels = [f"{n}: {', '.join(visits.get(n, []))}" for n in range(topomap.node_count)]
+        colors = [_NODE_NOW if n == node else _NODE for n in range(topomap.node_count)]
+        edges = [(str(e.u), str(e.v)) for e in topomap.edges()]
+        rec.log(
+            "map",
+            rr.GraphNodes(ids, labels=labels, colors=colors),
+            rr.GraphEdges(edges, graph_type="undirected"),
+        )
+        level = "INFO" if v.probes_not_in_log == 0 else "WARN"
+        rec.log("log/decisions", rr.TextLog(describe_decision(v), level=level))
+
+
+def log_view(rec: rr.RecordingStream, source: MessageSource, result: ReplayResult) -> None:
+    """Log everything a view shows of ``source`` and its replay ``result`` to ``rec``."""
+    geometry = RobotGeometry.from_run(source.run_metadata())
+    log_robot(rec, source.by_topic(ROBOT_PREFIX), geometry)
+    log_truth(rec, source.by_topic("/truth/"))
+    _log_map(rec, result)
+
+
+def save_view(source: MessageSource, result: ReplayResult, path: Path | str) -> None:
+    """Write the view of ``source`` and ``result`` to the ``.rrd`` file ``path``.
+
+    The file appears whole or not at all: it is written beside ``path`` under a
+    temporary name and renamed when complete. An existing ``path`` is replaced.
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise InputError(f"{path}: folder {path.parent} does not exist")
+    partial = path.with_name(f".{path.name}.partial")
+    rec = _recording(source)
+    try:
+        rec.save(partial, default_blueprint=view_blueprint())
+        log_view(rec, source, result)
+        rec.flush()
+        rec.disconnect()
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def spawn_view(source: MessageSource, result: ReplayResult) -> None:
+    """Open the view of ``source`` and ``result`` in a rerun viewer (started if need be)."""
+    rec = _recording(source)
+    rec.spawn(default_blueprint=view_blueprint())
+    log_view(rec, source, result)
+    try:
+        rec.flush()
+    except RuntimeError as exc:  # rerun's report of a viewer it cannot reach
+        raise ViewerError(f"the rerun viewer did not take the recording ({exc})") from None
+    finally:
+        rec.disconnect()

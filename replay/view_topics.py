@@ -1,0 +1,305 @@
+"""A log's streams as rerun data on the ``sim_time`` timeline.
+
+One function per stream: the network and the true pose (``/truth``), the range
+rays, IMU, wheels and controller (``/robot``), the camera's direction and images.
+High-rate streams go out as columns (``send_columns``), one call per entity, so
+that viewing costs little next to the replay; rare events go out one by one.
+rerun is imported by the functions that need it, never at import time.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import operator
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from recorder import LogMessage, Topic
+from recorder.schemas import (
+    CompressedImage,
+    ControllerState,
+    FrameTransform,
+    Imu,
+    Log,
+    NodeEvent,
+    Ranges,
+    SceneUpdate,
+    SweepCommand,
+    WheelEncoders,
+)
+from replay.wire import Columns, decode_columns, spec_of
+
+if TYPE_CHECKING:
+    import rerun as rr
+
+__all__ = ["TIMELINE", "RobotGeometry", "log_robot", "log_truth", "set_time", "time_column"]
+
+#: The one timeline of a view: log time, which is simulated time.
+TIMELINE = "sim_time"
+#: A new trajectory point when the robot has moved this far (the path is drawn as it grows).
+_TRAJECTORY_STEP_M = 0.05
+_RAY_COLORS = np.array([[255, 80, 80], [80, 200, 80], [80, 140, 255]], dtype=np.uint8)
+_CAMERA_RAY_M = 0.15
+_LOG_TIME = operator.attrgetter("log_time_ns")
+_DATA = operator.attrgetter("data")
+
+
+@dataclass(frozen=True)
+class RobotGeometry:
+    """Where the sensors sit on the robot; the defaults are the simulator's."""
+
+    tof_angles_rad: tuple[float, ...] = (0.0, math.radians(40.0), math.radians(-40.0))
+    tof_forward_m: float = 0.06
+    tof_height_m: float = 0.05
+    camera_height_m: float = 0.05
+    length_m: float = 0.12
+    width_m: float = 0.07
+
+    @classmethod
+    def from_run(cls, run: dict[str, str]) -> RobotGeometry:
+        """The geometry recorded in the run metadata's simulator settings, where present."""
+        try:
+            settings = json.loads(run.get("simulator", "{}"))
+        except json.JSONDecodeError:
+            settings = {}
+        robot = settings.get("robot", {}) if isinstance(settings, dict) else {}
+        explorer = settings.get("explorer", {}) if isinstance(settings, dict) else {}
+        base = cls()
+        return cls(
+            tof_angles_rad=tuple(robot.get("tof_angles_rad", base.tof_angles_rad)),
+            tof_forward_m=float(robot.get("tof_forward_m", base.tof_forward_m)),
+            tof_height_m=float(robot.get("tof_height_m", base.tof_height_m)),
+            camera_height_m=float(explorer.get("camera_height_m", base.camera_height_m)),
+            length_m=float(robot.get("length_m", base.length_m)),
+            width_m=float(robot.get("width_m", base.width_m)),
+        )
+
+
+def time_column(times_ns: Sequence[int] | np.ndarray) -> rr.TimeColumn:
+    """A ``sim_time`` column of integer nanoseconds."""
+    import rerun as rr
+
+    ns = np.asarray(times_ns, dtype=np.int64).astype("timedelta64[ns]")
+    return rr.TimeColumn(TIMELINE, duration=ns)
+
+
+def set_time(rec: rr.RecordingStream, time_ns: int) -> None:
+    """Put the next ``log`` calls of ``rec`` at ``time_ns`` on ``sim_time``."""
+    rec.set_time(TIMELINE, duration=np.timedelta64(int(time_ns), "ns"))
+
+
+def _columns(
+    messages: list[LogMessage], message_type: Any, *names: str
+) -> tuple[np.ndarray, Columns]:
+    """Log times (int ns) and the fields ``names`` of ``messages``, as columns in the
+    order of time (file order is not trusted)."""
+    times = np.fromiter(map(_LOG_TIME, messages), dtype=np.int64, count=len(messages))
+    if np.any(times[1:] < times[:-1]):
+        order = np.argsort(times, kind="stable")
+        times, messages = times[order], [messages[i] for i in order]
+    spec = spec_of(message_type.DESCRIPTOR, only=names)
+    return times, decode_columns(list(map(_DATA, messages)), spec)
+
+
+def _series(
+    rec: rr.RecordingStream, entity: str, times: np.ndarray, columns: Columns, *names: str
+) -> None:
+    """The fields ``names`` as the series of one time-series entity, named after them."""
+    import rerun as rr
+
+    values = np.stack([columns[name].astype(np.float64) for name in names], axis=1)
+    data = rr.Scalars.columns(scalars=values.reshape(-1)).partition([len(names)] * len(times))
+    rec.send_columns(entity, indexes=[time_column(times)], columns=data)
+    rec.log(entity, rr.SeriesLines(names=list(names)), static=True)
+
+
+def log_truth(rec: rr.RecordingStream, truth: dict[str, list[LogMessage]]) -> None:
+    """The network (static) and the robot's true pose, with its trajectory so far."""
+    import rerun as rr
+
+    for message in truth.get(Topic.NETWORK, [])[:1]:
+        strips: list[list[tuple[float, float, float]]] = []
+        positions: list[tuple[float, float, float]] = []
+        labels: list[str] = []
+        for entity in SceneUpdate.FromString(message.data).entities:
+            for line in entity.lines:
+                strips.append([(p.x, p.y, p.z) for p in line.points])
+            for sphere in entity.spheres:
+                p = sphere.pose.position
+                positions.append((p.x, p.y, p.z))
+                labels.append(entity.texts[0].text if entity.texts else entity.id)
+        rec.log(
+            "world/network/pipes",
+            rr.LineStrips3D(strips, radii=0.004, colors=(150, 150, 150)),
+            static=True,
+        )
+        rec.log(
+            "world/network/nodes",
+            rr.Points3D(positions, labels=labels, radii=0.03, colors=(230, 130, 0)),
+            static=True,
+        )
+    poses = truth.get(Topic.TRUE_POSE, [])
+    if not poses:
+        return
+    times, c = _columns(poses, FrameTransform, "translation", "rotation")
+    xyz = np.stack([c[f"translation.{k}"] for k in "xyz"], axis=1)
+    xyzw = np.stack([c[f"rotation.{k}"] for k in "xyzw"], axis=1)
+    rec.send_columns(
+        "world/robot",
+        indexes=[time_column(times)],
+        columns=rr.Transform3D.columns(translation=xyz, quaternion=xyzw),
+    )
+    # The trajectory so far, growing by a point every few centimetres of travel.
+    travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xyz, axis=0), axis=1))])
+    steps = np.floor(travelled / _TRAJECTORY_STEP_M)
+    kept = np.nonzero(np.diff(steps, prepend=-1.0) > 0)[0]
+    if len(kept) > 1:
+        trail = [xyz[kept[: i + 1]] for i in range(1, len(kept))]
+        rec.send_columns(
+            "world/trajectory",
+            indexes=[time_column(times[kept[1:]])],
+            columns=rr.LineStrips3D.columns(strips=trail),
+        )
+        style = rr.LineStrips3D.from_fields(colors=(60, 160, 255), radii=0.003)
+        rec.log("world/trajectory", style, static=True)
+
+
+def _log_ranges(
+    rec: rr.RecordingStream, messages: list[LogMessage], geometry: RobotGeometry
+) -> None:
+    import rerun as rr
+
+    if not messages:
+        return
+    names = ("front_m", "front_left_m", "front_right_m")
+    times, c = _columns(messages, Ranges, *names)
+    _series(rec, "sensors/tof/range_m", times, c, *names)
+    values = np.stack([c[name] for name in names], axis=1)
+    angles = np.asarray(geometry.tof_angles_rad[:3], dtype=np.float64)
+    directions = np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
+    vectors = (values[:, :, None] * directions[None, :, :]).reshape(-1, 3)
+    origin = (geometry.tof_forward_m, 0.0, geometry.tof_height_m)
+    rec.send_columns(
+        "world/robot/tof",
+        indexes=[time_column(times)],
+        columns=rr.Arrows3D.columns(vectors=vectors).partition([3] * len(times)),
+    )
+    rec.log(
+        "world/robot/tof",
+        rr.Arrows3D.from_fields(origins=[origin] * 3, colors=_RAY_COLORS, radii=0.002),
+        static=True,
+    )
+
+
+def _log_body(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) -> None:
+    imu, wheels = messages.get(Topic.IMU), messages.get(Topic.WHEELS)
+    if imu:
+        accel = ("accel_forward_mps2", "accel_left_mps2")
+        times, c = _columns(imu, Imu, "yaw_rate_rps", *accel)
+        _series(rec, "sensors/imu/yaw_rate_rps", times, c, "yaw_rate_rps")
+        _series(rec, "sensors/imu/accel_mps2", times, c, *accel)
+    if wheels:
+        ticks = ("left_ticks", "right_ticks")
+        times, c = _columns(wheels, WheelEncoders, *ticks)
+        _series(rec, "sensors/wheels/ticks", times, c, *ticks)
+
+
+def _log_controller(rec: rr.RecordingStream, messages: list[LogMessage]) -> None:
+    import rerun as rr
+
+    if not messages:
+        return
+    times, c = _columns(messages, ControllerState, "state", "linear_mps", "angular_rps")
+    _series(rec, "controller/linear_mps", times, c, "linear_mps")
+    _series(rec, "controller/angular_rps", times, c, "angular_rps")
+    # The state as text each time it changes: a line per control step would drown the log.
+    changes = c.changes("state")
+    texts = [f"controller: {state}" for state in c.strings("state", changes)]
+    rec.send_columns(
+        "log/controller",
+        indexes=[time_column(times[changes])],
+        columns=rr.TextLog.columns(text=texts, level=["DEBUG"] * len(texts)),
+    )
+
+
+def _log_camera(
+    rec: rr.RecordingStream, messages: dict[str, list[LogMessage]], geometry: RobotGeometry
+) -> None:
+    import rerun as rr
+
+    images = messages.get(Topic.IMAGE, [])
+    if images:
+        decoded = [CompressedImage.FromString(m.data) for m in images]
+        rec.send_columns(
+            "camera/image",
+            indexes=[time_column([m.log_time_ns for m in images])],
+            columns=rr.EncodedImage.columns(
+                blob=[i.data for i in decoded], media_type=[f"image/{i.format}" for i in decoded]
+            ),
+        )
+    sweeps = messages.get(Topic.SWEEP, [])
+    if not sweeps:
+        return
+    # The camera's direction from a sweep's start to its end; nothing in between sweeps.
+    commands = [SweepCommand.FromString(m.data) for m in sweeps]
+    shown = [c for c in commands if c.phase != SweepCommand.END]
+    vectors = [(math.cos(c.camera_angle_rad), math.sin(c.camera_angle_rad), 0.0) for c in shown]
+    labels = [f"sweep {c.sweep_id}" + (f" ({c.probe_kind})" if c.probe else "") for c in shown]
+    rec.send_columns(
+        "world/robot/camera",
+        indexes=[time_column([m.log_time_ns for m in sweeps])],
+        columns=rr.Arrows3D.columns(
+            vectors=_CAMERA_RAY_M * np.array(vectors).reshape(-1, 3), labels=labels
+        ).partition([int(c.phase != SweepCommand.END) for c in commands]),
+    )
+    origin = (0.0, 0.0, geometry.camera_height_m)
+    style = rr.Arrows3D.from_fields(origins=[origin], colors=(255, 220, 0), radii=0.004)
+    rec.log("world/robot/camera", style, static=True)
+
+
+def _log_events(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) -> None:
+    import rerun as rr
+
+    rows: list[tuple[int, str, str]] = []
+    for m in messages.get(Topic.EVENTS, []):
+        event = Log.FromString(m.data)
+        level = "WARN" if event.level >= Log.Level.WARNING else "INFO"
+        rows.append((m.log_time_ns, event.message, level))
+    for m in messages.get(Topic.NODE, []):
+        node = NodeEvent.FromString(m.data)
+        if node.kind == NodeEvent.ARRIVAL:
+            text = f"visit {node.visit_id}: arrived at a node"
+        else:
+            turn = math.degrees(node.exit_rad)
+            text = f"visit {node.visit_id}: left by the exit at {turn:+.0f} deg"
+        rows.append((m.log_time_ns, text, "INFO"))
+    if rows:
+        rows.sort(key=lambda row: row[0])
+        times, texts, levels = zip(*rows, strict=True)
+        rec.send_columns(
+            "log/events",
+            indexes=[time_column(times)],
+            columns=rr.TextLog.columns(text=texts, level=levels),
+        )
+
+
+def log_robot(
+    rec: rr.RecordingStream, messages: dict[str, list[LogMessage]], geometry: RobotGeometry
+) -> None:
+    """Every ``/robot`` stream: range rays and values, IMU, wheels, controller, camera."""
+    import rerun as rr
+
+    half = (geometry.length_m / 2, geometry.width_m / 2, geometry.tof_height_m / 2)
+    body = rr.Boxes3D(half_sizes=[half], centers=[(0.0, 0.0, half[2])], colors=(200, 200, 200))
+    rec.log("world/robot/body", body, static=True)
+    # The images first: rerun encodes and writes them in its own threads while the
+    # other streams are decoded here.
+    _log_camera(rec, messages, geometry)
+    _log_ranges(rec, messages.get(Topic.RANGES, []), geometry)
+    _log_body(rec, messages)
+    _log_controller(rec, messages.get(Topic.CONTROLLER, []))
+    _log_events(rec, messages)

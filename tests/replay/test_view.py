@@ -1,0 +1,234 @@
+"""``pipemap view --save``: the recording, read back with rerun's own tools.
+
+The recording is saved once per module from the shared 32 px run and checked with
+``rerun rrd verify`` / ``rerun rrd compare`` and rerun's chunk reader
+(``rerun.chunk.RrdReader``): every image, pose and sensor sample is there, on the
+``sim_time`` timeline alone, and the map grows into the replay's map.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pipemap.cli import main
+from recorder import Topic, read_log
+from recorder.schemas import CompressedImage, Ranges
+from replay import FileSource, replay
+from replay.view import save_view
+from tests.logs import rerun_cli
+
+RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
+
+
+def view(*args: str) -> subprocess.CompletedProcess[str]:
+    """``pipemap view`` as a user runs it, in a fresh interpreter."""
+    return subprocess.run(
+        [sys.executable, "-m", "pipemap", "view", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+@pytest.fixture(scope="module")
+def saved(recorded_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("view") / "run.rrd"
+    done = view(str(recorded_run), "--save", str(path))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(f"viewed {recorded_run}: 13 sweeps, 78 images, 13 visits")
+    return path
+
+
+def read_chunks(path: Path) -> dict[str, list[Any]]:
+    """The recording's chunks by entity path (the first recording store of the file)."""
+    from rerun.chunk import RrdReader
+
+    by_entity: dict[str, list[Any]] = defaultdict(list)
+    for chunk in RrdReader(path).stream().to_chunks():
+        by_entity[chunk.entity_path].append(chunk)
+    return by_entity
+
+
+@pytest.fixture(scope="module")
+def chunks(saved: Path) -> dict[str, list[Any]]:
+    return read_chunks(saved)
+
+
+def rows(chunks: dict[str, list[Any]], entity: str, component: str) -> int:
+    """Rows of ``entity`` on the timeline that hold ``component``."""
+    return sum(
+        c.num_rows
+        for c in chunks[entity]
+        if not c.is_static and component in c.to_record_batch().schema.names
+    )
+
+
+def column(chunks: dict[str, list[Any]], entity: str, name: str) -> list[Any]:
+    """Every timeline value of column ``name`` of ``entity``, in time order."""
+    values: list[tuple[int, Any]] = []
+    for c in chunks[entity]:
+        batch = c.to_record_batch()
+        if not c.is_static and name in batch.schema.names:
+            times = batch.column("sim_time").cast("int64").to_pylist()
+            values.extend(zip(times, batch.column(name).to_pylist(), strict=True))
+    return [v for _, v in sorted(values, key=lambda tv: tv[0])]
+
+
+def test_rerun_verifies_the_recording(saved: Path) -> None:
+    done = rerun_cli("rrd", "verify", str(saved))
+    assert done.returncode == 0, done.stderr
+
+
+def test_every_image_pose_and_sample_is_there(
+    recorded_run: Path, chunks: dict[str, list[Any]]
+) -> None:
+    counts = read_log(recorded_run).counts
+    assert rows(chunks, "/camera/image", "EncodedImage:blob") == counts[Topic.IMAGE] == 78
+    assert rows(chunks, "/world/robot", "Transform3D:translation") == counts[Topic.TRUE_POSE]
+    series = {
+        "/sensors/tof/range_m": (Topic.RANGES, 3),
+        "/sensors/imu/yaw_rate_rps": (Topic.IMU, 1),
+        "/sensors/imu/accel_mps2": (Topic.IMU, 2),
+        "/sensors/wheels/ticks": (Topic.WHEELS, 2),
+        "/controller/linear_mps": (Topic.CONTROLLER, 1),
+        "/controller/angular_rps": (Topic.CONTROLLER, 1),
+    }
+    for entity, (topic, width) in series.items():
+        values = column(chunks, entity, "Scalars:scalars")
+        assert len(values) == counts[topic], entity
+        assert {len(v) for v in values} == {width}, entity
+    assert rows(chunks, "/world/robot/tof", "Arrows3D:vectors") == counts[Topic.RANGES]
+    # One camera direction per sweep START and IMAGE, an empty one at each END.
+    assert rows(chunks, "/world/robot/camera", "Arrows3D:vectors") == counts[Topic.SWEEP]
+    assert 0 < rows(chunks, "/log/controller", "TextLog:text") < counts[Topic.CONTROLLER] / 10
+    assert rows(chunks, "/world/trajectory", "LineStrips3D:strips") > 100
+    static = [c for c in chunks["/world/network/nodes"] if c.is_static]
+    labels = static[0].to_record_batch().column("Points3D:labels").to_pylist()[0]
+    assert sorted(labels) == ["A", "B", "C", "D", "E", "F", "S"]
+
+
+def test_range_rays_are_as_long_as_the_ranges(
+    recorded_run: Path, chunks: dict[str, list[Any]]
+) -> None:
+    logged = [m for m in read_log(recorded_run).messages if m.topic == Topic.RANGES]
+    first = Ranges.FromString(logged[0].data)
+    rays = column(chunks, "/world/robot/tof", "Arrows3D:vectors")[0]
+    lengths = [math.hypot(*ray) for ray in rays]
+    expected = [first.front_m, first.front_left_m, first.front_right_m]
+    assert lengths == pytest.approx(expected, abs=1e-6)
+    # front, then 40 degrees to the left, then 40 degrees to the right
+    angles = [math.degrees(math.atan2(ray[1], ray[0])) for ray in rays]
+    assert angles == pytest.approx([0.0, 40.0, -40.0], abs=1e-3)
+
+
+def test_images_are_the_logged_pngs_at_their_log_times(
+    recorded_run: Path, chunks: dict[str, list[Any]]
+) -> None:
+    logged = [m for m in read_log(recorded_run).messages if m.topic == Topic.IMAGE]
+    first = CompressedImage.FromString(logged[0].data).data
+    blobs = column(chunks, "/camera/image", "EncodedImage:blob")
+    assert bytes(blobs[0][0]) == first
+    times = sorted(
+        t
+        for c in chunks["/camera/image"]
+        for t in c.to_record_batch().column("sim_time").cast("int64").to_pylist()
+    )
+    assert times == [m.log_time_ns for m in logged]
+
+
+def test_the_map_grows_into_the_replay_map(tmp_path: Path) -> None:
+    # A stored 96 px log: at 32 px the localizer makes all visits one junction.
+    source = FileSource(RECORDINGS / "paper_autonomous.mcap")
+    result = replay(source)
+    save_view(source, result, tmp_path / "paper.rrd")
+    chunks = read_chunks(tmp_path / "paper.rrd")
+    nodes = column(chunks, "/map", "GraphNodes:node_ids")
+    edges = column(chunks, "/map", "GraphEdges:edges")
+    decisions = column(chunks, "/log/decisions", "TextLog:text")
+    assert len(nodes) == len(edges) == len(decisions) == len(result.visits) == 13
+    assert nodes[0] == ["0"] and edges[0] == []
+    assert nodes[-1] == [str(n) for n in range(result.topomap.node_count)]
+    assert len(nodes[-1]) == 7 and len(edges[-1]) == len(result.topomap.edges()) == 6
+    final = {tuple(sorted(e.values())) for e in edges[-1]}
+    assert final == {tuple(sorted((str(e.u), str(e.v)))) for e in result.topomap.edges()}
+    for visit, text in zip(result.visits, decisions, strict=True):
+        d = visit.decision
+        assert text[0].startswith(f"visit {visit.visit_id:04d} -> node {d.node}; ")
+        assert ("; known; " if d.known else "; new; ") in text[0]
+        assert f"similarity {d.similarity:.3f}" in text[0]
+
+
+def test_sim_time_is_the_only_timeline(chunks: dict[str, list[Any]]) -> None:
+    timed = [c for entity in chunks.values() for c in entity if not c.is_static]
+    assert timed and all(c.timeline_names == ["sim_time"] for c in timed)
+
+
+def test_two_saves_of_one_log_compare_equal(
+    recorded_run: Path, saved: Path, tmp_path: Path
+) -> None:
+    again = tmp_path / "again.rrd"
+    done = view(str(recorded_run), "--save", str(again))
+    assert done.returncode == 0, done.stderr
+    compared = rerun_cli("rrd", "compare", str(saved), str(again))
+    assert compared.returncode == 0, compared.stderr + compared.stdout
+
+
+def run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    try:
+        status = main(argv)
+    except SystemExit as exc:
+        status = exc.code if isinstance(exc.code, int) else 1
+    out, err = capfd.readouterr()
+    return status, out, err
+
+
+@pytest.mark.parametrize(
+    ("case", "expected"),
+    [
+        ("missing", "no such file"),
+        ("not_mcap", "not an MCAP file"),
+        ("wrong_flag", "unrecognized arguments: --frobnicate"),
+        ("exists", "exists; refusing to overwrite without --force"),
+        ("suffix", "a rerun recording is saved as a .rrd file"),
+        ("no_folder", "does not exist"),
+        ("no_display", "no display for the rerun viewer"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(
+    case: str,
+    expected: str,
+    recorded_run: Path,
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    for variable in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
+        monkeypatch.delenv(variable, raising=False)
+    not_mcap = tmp_path / "notes.mcap"
+    not_mcap.write_text("not a log\n")
+    existing = tmp_path / "old.rrd"
+    existing.write_bytes(b"keep me")
+    log, out = str(recorded_run), str(tmp_path / "new.rrd")
+    argv = {
+        "missing": [str(tmp_path / "nothing.mcap"), "--save", out],
+        "not_mcap": [str(not_mcap), "--save", out],
+        "wrong_flag": [log, "--frobnicate"],
+        "exists": [log, "--save", str(existing)],
+        "suffix": [log, "--save", str(tmp_path / "new.mcap")],
+        "no_folder": [log, "--save", str(tmp_path / "absent" / "new.rrd")],
+        "no_display": [log],
+    }[case]
+    status, stdout, stderr = run(["view", *argv], capfd)
+    assert status == 2
+    assert stdout == ""
+    assert len(stderr.splitlines()) == 1 and stderr.startswith("pipemap: error: ")
+    assert expected in stderr
+    assert existing.read_bytes() == b"keep me"
+    assert not (tmp_path / "new.rrd").exists()
