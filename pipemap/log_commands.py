@@ -75,6 +75,13 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
         )
+    if args.save and not args.view:
+        raise InputError("--save: writes the view of the run, so it needs --view")
+    view_target = None
+    if args.view:
+        from pipemap.view_command import check_view_target
+
+        view_target = check_view_target(target, args.save, args.force)
     settings = RecordSettings(
         network=args.network,
         start=args.start,
@@ -106,6 +113,10 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, "
         f"{result.status}\n"
     )
+    if args.view:
+        from pipemap.view_command import view_recorded
+
+        view_recorded(target, view_target, args.threshold, out, err)
     return 0 if result.ok else 1
 
 

@@ -164,6 +164,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p_record.add_argument("-o", "--output", required=True, metavar="RUN.mcap", help="log file")
     p_record.add_argument("--force", action="store_true", help="overwrite an existing log")
+    p_record.add_argument(
+        "--view", action="store_true", help="show the run in the rerun viewer right after it"
+    )
+    p_record.add_argument(
+        "--save",
+        action="store_true",
+        help="with --view: write the view as RUN.rrd beside the log instead of opening it",
+    )
 
     for name, helptext, description in (
         (

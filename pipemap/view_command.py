@@ -17,7 +17,7 @@ import argparse
 import os
 import sys
 from pathlib import Path
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 from pipemap.errors import InputError, ViewerError
 from pipemap.replay_commands import (
@@ -27,7 +27,10 @@ from pipemap.replay_commands import (
     progress_printer,
 )
 
-__all__ = ["run_view"]
+if TYPE_CHECKING:
+    from replay import MessageSource, ReplayResult
+
+__all__ = ["check_view_target", "run_view", "view_recorded"]
 
 #: The file suffix rerun gives its recordings; another one is most likely a slip.
 RRD_SUFFIX = ".rrd"
@@ -49,8 +52,42 @@ def _check_display() -> None:
     if not any(os.environ.get(name) for name in _DISPLAY_VARIABLES):
         raise ViewerError(
             "no display for the rerun viewer (DISPLAY and WAYLAND_DISPLAY are unset); "
-            "save the recording with --save OUT.rrd and open it with rerun OUT.rrd elsewhere"
+            "save the recording with --save and open the .rrd with rerun elsewhere"
         )
+
+
+def check_view_target(log: Path, save: bool, force: bool) -> Path | None:
+    """For ``pipemap record --view [--save]``, before the run: the ``.rrd`` beside the
+    log when saving (refused if it exists without ``force``), else the display."""
+    if not save:
+        _check_display()
+        return None
+    return check_output(str(log.with_suffix(RRD_SUFFIX)), force)
+
+
+def _show(
+    source: MessageSource, result: ReplayResult, target: Path | None, summary: str, out: TextIO
+) -> None:
+    from replay.view import save_view, spawn_view
+
+    if target is None:
+        spawn_view(source, result)
+        out.write(f"viewed {summary}, sent to the rerun viewer\n")
+    else:
+        save_view(source, result, target)
+        out.write(f"viewed {summary}, written to {target}\n")
+
+
+def view_recorded(
+    log: Path, target: Path | None, threshold: float, out: TextIO, err: TextIO
+) -> None:
+    """Right after ``pipemap record --view``: replay the new log and show or save it."""
+    from localizer import LocalizerConfig
+    from replay import FileSource, replay
+
+    source = FileSource(log)
+    result = replay(source, LocalizerConfig(threshold=threshold), progress_printer(err))
+    _show(source, result, target, str(log), out)
 
 
 def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -61,7 +98,6 @@ def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
     config = localizer_config(args)
 
     from replay import replay
-    from replay.view import save_view, spawn_view
 
     source = open_source(args, err)
     result = replay(source, config, progress_printer(err))
@@ -71,10 +107,5 @@ def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
         f"{args.log}: {result.sweeps} sweeps, {result.images} images, {len(result.visits)} "
         f"visits, {result.topomap.node_count} junctions"
     )
-    if target is None:
-        spawn_view(source, result)
-        out.write(f"viewed {summary}, sent to the rerun viewer\n")
-    else:
-        save_view(source, result, target)
-        out.write(f"viewed {summary}, written to {target}\n")
+    _show(source, result, target, summary, out)
     return 0

@@ -180,6 +180,12 @@ def test_two_saves_of_one_log_compare_equal(
     assert compared.returncode == 0, compared.stderr + compared.stdout
 
 
+def no_display(monkeypatch: pytest.MonkeyPatch) -> None:
+    """As on a headless machine: no X11 or Wayland display."""
+    for variable in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
+        monkeypatch.delenv(variable, raising=False)
+
+
 def run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     try:
         status = main(argv)
@@ -209,8 +215,7 @@ def test_bad_input_is_one_line_and_exit_2(
     capfd: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    for variable in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
-        monkeypatch.delenv(variable, raising=False)
+    no_display(monkeypatch)
     not_mcap = tmp_path / "notes.mcap"
     not_mcap.write_text("not a log\n")
     existing = tmp_path / "old.rrd"
@@ -232,3 +237,44 @@ def test_bad_input_is_one_line_and_exit_2(
     assert expected in stderr
     assert existing.read_bytes() == b"keep me"
     assert not (tmp_path / "new.rrd").exists()
+
+
+def test_record_view_save_writes_the_view_beside_the_log(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "run.mcap"
+    status, stdout, stderr = run(
+        ["record", "--network", "paper", "--resolution", "32", "-o", str(log), "--view", "--save"],
+        capfd,
+    )
+    assert status == 0, stderr
+    rrd = tmp_path / "run.rrd"
+    assert stdout.splitlines()[-1] == f"viewed {log}, written to {rrd}"
+    assert rerun_cli("rrd", "verify", str(rrd)).returncode == 0
+    images = read_chunks(rrd)
+    assert rows(images, "/camera/image", "EncodedImage:blob") == read_log(log).counts[Topic.IMAGE]
+
+
+@pytest.mark.parametrize(
+    ("extra", "expected"),
+    [
+        (["--save"], "--save: writes the view of the run, so it needs --view"),
+        (["--view"], "no display for the rerun viewer"),
+        (["--view", "--save"], "exists; refusing to overwrite without --force"),
+    ],
+)
+def test_record_view_is_checked_before_the_run(
+    extra: list[str],
+    expected: str,
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    no_display(monkeypatch)
+    (tmp_path / "run.rrd").write_bytes(b"keep me")
+    log = tmp_path / "run.mcap"
+    status, stdout, stderr = run(["record", "--network", "paper", "-o", str(log), *extra], capfd)
+    assert status == 2 and stdout == ""
+    assert len(stderr.splitlines()) == 1 and expected in stderr
+    assert not log.exists()  # refused before the run: no log written
+    assert (tmp_path / "run.rrd").read_bytes() == b"keep me"
