@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.signal import fftconvolve
+from scipy import fft as sp_fft
 
 from localizer.imageset import ImageSet
 
@@ -148,6 +148,24 @@ def sums_from_integral(integral: np.ndarray, dys: np.ndarray, dxs: np.ndarray) -
     return sums
 
 
+def _correlate_same(image: np.ndarray, template: np.ndarray) -> np.ndarray:
+    """``sum_{y,x} template[y, x] * image[y + dy, x + dx]`` over the "same" shift range.
+
+    Correlation is convolution with the template flipped in both axes, done by real
+    FFTs of the full linear size rounded up to a fast length. (This replaces scipy's
+    ``signal.fftconvolve``: importing ``scipy.signal`` took 0.66 s of every command's
+    start.)
+    """
+    h, w = image.shape
+    full = (2 * h - 1, 2 * w - 1)
+    size = [sp_fft.next_fast_len(n, True) for n in full]
+    spectrum = sp_fft.rfftn(image, size) * sp_fft.rfftn(template[::-1, ::-1], size)
+    product = sp_fft.irfftn(spectrum, size)
+    top, left = (h - 1) // 2, (w - 1) // 2
+    same: np.ndarray = product[top : top + h, left : left + w]
+    return same
+
+
 def ncc_same(template: np.ndarray, image: np.ndarray) -> np.ndarray:
     """Normalized cross-correlation map of two equally sized images, "same" mode.
 
@@ -160,8 +178,7 @@ def ncc_same(template: np.ndarray, image: np.ndarray) -> np.ndarray:
     t = template.astype(np.float64) - template.mean()
     b = image.astype(np.float64) - image.mean()
     h, w = t.shape
-    # Correlation is convolution with the template flipped in both axes.
-    numerator = fftconvolve(b, t[::-1, ::-1], mode="same")
+    numerator = _correlate_same(b, t)
     dys = np.arange(h) - h // 2
     dxs = np.arange(w) - w // 2
     s1 = window_sums(b, dys, dxs)

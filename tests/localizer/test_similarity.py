@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from localizer import ImageSet, best_offset, ncc_same, pair_peak, reference_match
-from localizer.similarity import relative_rotation_rad, window_sums, wrap_angle_rad
+from localizer.similarity import (
+    _correlate_same,
+    relative_rotation_rad,
+    window_sums,
+    wrap_angle_rad,
+)
 
 
 def _texture(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
@@ -32,6 +37,24 @@ def test_window_sums_match_brute_force() -> None:
         for ix, dx in enumerate(dxs):
             want = padded[10 + dy : 15 + dy, 10 + dx : 17 + dx].sum()
             assert got[iy, ix] == pytest.approx(want, abs=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(5, 7), (6, 8), (1, 9), (4, 3)])
+def test_correlation_is_the_sum_over_every_same_shift(shape: tuple[int, int]) -> None:
+    # Entry [iy, ix] sums template[y, x] * image[y + dy, x + dx], image zero outside,
+    # for dy = iy - h//2 and dx = ix - w//2: checked against the sum itself.
+    rng = np.random.default_rng(4)
+    h, w = shape
+    image, template = rng.normal(size=shape), rng.normal(size=shape)
+    got = _correlate_same(image, template)
+    assert got.shape == shape
+    padded = np.zeros((3 * h, 3 * w))
+    padded[h : 2 * h, w : 2 * w] = image
+    for iy in range(h):
+        for ix in range(w):
+            dy, dx = iy - h // 2, ix - w // 2
+            window = padded[h + dy : 2 * h + dy, w + dx : 2 * w + dx]
+            assert got[iy, ix] == pytest.approx(float(np.sum(template * window)), abs=1e-9)
 
 
 def test_window_sums_accept_a_stack() -> None:
