@@ -57,6 +57,13 @@ class FastConfig:
     refine_candidates: int = 2
     refine_offsets: int = 2
     runner_up_offsets: int = 1
+    #: Zoom-in factors (> 1) also tried in the refinement, on either set of a pair;
+    #: empty for the paper's algorithm. See :func:`_zoomed`.
+    zooms: tuple[float, ...] = ()
+    #: Subtract from each image its Gaussian blur of sigma = this fraction of the
+    #: image width, before anything else; 0 for the paper's algorithm. See
+    #: :func:`_high_passed`.
+    highpass_fraction: float = 0.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -72,6 +79,13 @@ class FastConfig:
                 raise LocalizerError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.coarse_dy_px < 0:
             raise LocalizerError(f"coarse_dy_px must be >= 0, got {self.coarse_dy_px}")
+        if not (0.0 <= self.highpass_fraction <= 1.0):
+            raise LocalizerError(
+                f"highpass_fraction must be in [0, 1], got {self.highpass_fraction}"
+            )
+        for zoom in self.zooms:
+            if not (1.0 < zoom <= 2.0):
+                raise LocalizerError(f"zoom factors must be in (1, 2], got {zoom}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +109,8 @@ class PreparedSet:
     inv_window_norm: np.ndarray
     #: Refinement: spectra and norms of the decimated images.
     fine: FineSpectra
+    #: Refinement: the same of the images zoomed in by each of ``FastConfig.zooms``.
+    zoomed: tuple[FineSpectra, ...] = ()
 
 
 def _area_downsampled(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarray:
@@ -114,6 +130,46 @@ def _decimated(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarr
     return np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float32)
 
 
+def _high_passed(image_set: ImageSet, sigma_px: float) -> ImageSet:
+    """The set with each image's Gaussian blur of ``sigma_px`` subtracted.
+
+    Every junction of a dark pipe lit by a lamp at the camera shares the same slow
+    fall of brightness from the lit near wall to the dark far pipe. It raises the
+    NCC of different junctions alike and varies with how the run's textures came
+    out; removing it leaves the junction's own features (stains, joints, openings).
+    The blur runs over the whole image, so the kept part's lower edge is filtered
+    with its true neighbours.
+    """
+    images = np.asarray(image_set.images, dtype=np.float32)
+    blurred = np.stack([cv2.GaussianBlur(image, (0, 0), sigma_px) for image in images])
+    return replace(image_set, images=images - blurred)
+
+
+def _zoomed(image_set: ImageSet, zoom: float) -> np.ndarray:
+    """The kept part of each image as seen by a camera zoomed in by ``zoom``.
+
+    Magnified about the image centre (the principal point), which is what moving a
+    camera towards the pipe wall it faces does to that wall; the parallax of nearer
+    and farther surfaces is not modelled. Bilinear, and the magnified view never
+    needs pixels from outside the image.
+    """
+    images = image_set.images
+    h, w = images.shape[1:]
+    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
+    warp = np.array([[zoom, 0.0, (1.0 - zoom) * cx], [0.0, zoom, (1.0 - zoom) * cy]])
+    kept = image_set.kept_rows
+    out = np.empty((len(images), kept, w), dtype=np.float32)
+    for i, image in enumerate(images):
+        out[i] = cv2.warpAffine(
+            np.asarray(image, dtype=np.float32),
+            warp,
+            (w, h),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )[:kept]
+    return out
+
+
 def _fft_length(size: int) -> int:
     # Shifts -S/2 .. S/2-1 must not wrap around: at least 1.5 S, then a fast size.
     return int(cv2.getOptimalDFTSize(size + (size + 1) // 2))
@@ -125,6 +181,8 @@ def _same_shifts(size: int) -> np.ndarray:
 
 def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     """Precompute everything the fast path needs of one image set."""
+    if config.highpass_fraction > 0.0:
+        image_set = _high_passed(image_set, config.highpass_fraction * image_set.width)
     cropped = image_set.cropped()
     small = _area_downsampled(cropped, config.coarse_row_downsample, config.coarse_downsample)
     n, rows, wd = small.shape
@@ -143,6 +201,8 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
             image_set.fov_rad,
             image_set.keep_top_fraction,
             *(getattr(config, f) for f in _SHAPE_FIELDS),
+            config.highpass_fraction,
+            *config.zooms,
         ),
         template_rows=np.ascontiguousarray(np.conj(spectra).transpose(2, 0, 1), np.complex64),
         inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
@@ -151,6 +211,15 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         fine=_fine_spectra(
             _decimated(cropped, config.fine_row_downsample, config.fine_downsample),
             image_set.width,
+        ),
+        zoomed=tuple(
+            _fine_spectra(
+                _decimated(
+                    _zoomed(image_set, zoom), config.fine_row_downsample, config.fine_downsample
+                ),
+                image_set.width,
+            )
+            for zoom in config.zooms
         ),
     )
 
@@ -322,6 +391,28 @@ def _fine_peaks(
     return np.clip(value, -1.0, 1.0).reshape(shape), (column - width // 2).reshape(shape)
 
 
+def _zoomed_peaks(
+    query: PreparedSet, blocks: list[tuple[PreparedSet, int]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_fine_peaks` of the blocks, each image pair at its best zoom.
+
+    Without zooms this is the paper's comparison. With them, each pair is also
+    compared with the query zoomed in and with the known set zoomed in (a camera
+    nearer to, or farther from, the wall it faces), and keeps the highest peak and
+    that peak's column shift.
+    """
+    values, columns = _fine_peaks(query.fine, [(known.fine, k) for known, k in blocks])
+    for z, zoomed in enumerate(query.zoomed):
+        for trial in (
+            _fine_peaks(zoomed, [(known.fine, k) for known, k in blocks]),
+            _fine_peaks(query.fine, [(known.zoomed[z], k) for known, k in blocks]),
+        ):
+            better = trial[0] > values
+            values = np.where(better, trial[0], values)
+            columns = np.where(better, trial[1], columns)
+    return values, columns
+
+
 def _offset_scores(peaks: np.ndarray) -> np.ndarray:
     """Mean peak NCC per cyclic offset: ``[..., k] = mean_j peaks[..., j, (j+k) % N]``."""
     n = peaks.shape[-1]
@@ -451,7 +542,7 @@ class FastMatcher:
                 : n_offsets if rank == 0 else n_runner_up
             ]
         ]
-        values, columns = _fine_peaks(query.fine, [(self._sets[i].fine, k) for i, k in blocks])
+        values, columns = _zoomed_peaks(query, [(self._sets[i], k) for i, k in blocks])
         j = np.arange(n)
         for i in order[: self.config.refine_candidates]:
             peak_ncc = np.full((n, n), -np.inf)

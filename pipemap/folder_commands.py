@@ -11,7 +11,6 @@ import json
 from typing import Any, TextIO
 
 from localizer import (
-    FastConfig,
     ImageSet,
     Localizer,
     LocalizerConfig,
@@ -22,14 +21,9 @@ from localizer import (
     reference_match,
 )
 from pipemap.folders import load_image_sets
+from pipemap.parser import fast_config
 
 __all__ = ["match_document", "run_map", "run_match"]
-
-
-def _fast_config(args: argparse.Namespace) -> FastConfig:
-    if args.downsample is None:
-        return FastConfig()
-    return FastConfig(fine_downsample=args.downsample)
 
 
 def _load(args: argparse.Namespace) -> list[ImageSet]:
@@ -68,7 +62,7 @@ def run_match(args: argparse.Namespace, out: TextIO) -> int:
             for j in range(i + 1, len(sets))
         }
     else:
-        matches = pairwise_matches(sets, _fast_config(args), every_offset=args.every_offset)
+        matches = pairwise_matches(sets, fast_config(args), every_offset=args.every_offset)
     doc = match_document(list(args.dirs), matches, args.threshold)
     if args.json:
         out.write(json.dumps(doc, indent=2) + "\n")
@@ -91,7 +85,7 @@ def run_match(args: argparse.Namespace, out: TextIO) -> int:
 def run_map(args: argparse.Namespace, out: TextIO) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     sets = _load(args)
-    localizer = Localizer(LocalizerConfig(threshold=args.threshold, fast=_fast_config(args)))
+    localizer = Localizer(LocalizerConfig(threshold=args.threshold, fast=fast_config(args)))
     visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]
     doc = map_document(localizer.map, visits)
     if args.json:

@@ -1,4 +1,5 @@
-"""The ``pipemap`` argument parser: argparse only, no work, no heavy imports."""
+"""The ``pipemap`` argument parser (argparse only, no heavy imports) and the settings it
+parses into."""
 
 from __future__ import annotations
 
@@ -6,9 +7,12 @@ import argparse
 import math
 import sys
 from collections.abc import Callable
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from pipemap import __version__
+
+if TYPE_CHECKING:
+    from localizer import FastConfig
 
 __all__ = ["build_parser"]
 
@@ -56,6 +60,56 @@ def _degrees(text: str) -> float:
     return math.radians(_fov_deg(text))
 
 
+_zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (1, 2]")
+_highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
+
+
+def _zooms(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(_zoom(part) for part in text.split(","))
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"zoom factors are numbers in (1, 2], comma-separated, got {text}"
+        ) from None
+
+
+def add_similarity_options(p: argparse.ArgumentParser) -> None:
+    """The fast path's settings: ``--downsample`` trades accuracy for speed; ``--zoom``
+    and ``--highpass`` switch on pipemap's extensions of the paper's similarity (off
+    by default, so the defaults are the paper's Algorithm 2)."""
+    p.add_argument(
+        "--downsample",
+        type=_positive_int,
+        default=None,
+        help="fast path: column decimation factor of the accurate stage (default 4)",
+    )
+    p.add_argument(
+        "--zoom",
+        type=_zooms,
+        default=(),
+        metavar="Z[,Z...]",
+        help="also compare each image pair with either image zoomed in by these factors, "
+        "for cameras off the junction centre (e.g. 1.15,1.3; default off)",
+    )
+    p.add_argument(
+        "--highpass",
+        type=_highpass,
+        default=0.0,
+        metavar="F",
+        help="first subtract from every image its Gaussian blur of sigma F x image width, "
+        "the lamp's brightness fall all junctions share (e.g. 0.175; default off); "
+        "it lowers every similarity: tune --threshold with it",
+    )
+
+
+def fast_config(args: argparse.Namespace) -> FastConfig:
+    """The :class:`localizer.FastConfig` of the options of :func:`add_similarity_options`."""
+    from localizer import FastConfig
+
+    downsample = FastConfig().fine_downsample if args.downsample is None else args.downsample
+    return FastConfig(fine_downsample=downsample, zooms=args.zoom, highpass_fraction=args.highpass)
+
+
 def _add_matching_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("dirs", nargs="+", metavar="DIR", help="image-set folders (camera_image1..N)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -71,12 +125,7 @@ def _add_matching_options(p: argparse.ArgumentParser) -> None:
         default=None,
         help="fraction of each image kept from the top (default 0.5)",
     )
-    p.add_argument(
-        "--downsample",
-        type=_positive_int,
-        default=None,
-        help="fast path: column decimation factor of the accurate stage (default 4)",
-    )
+    add_similarity_options(p)
 
 
 def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
@@ -202,12 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
         p_log.add_argument(
             "--no-active-vision", action="store_true", help="never ask for probe sweeps"
         )
-        p_log.add_argument(
-            "--downsample",
-            type=_positive_int,
-            default=None,
-            help="fast path: column decimation factor of the accurate stage (default 4)",
-        )
+        add_similarity_options(p_log)
         if name == "replay":
             p_log.add_argument(
                 "-o",

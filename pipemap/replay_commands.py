@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from pipemap.errors import InputError
+from pipemap.parser import fast_config
 
 __all__ = [
     "check_output",
@@ -25,12 +26,12 @@ __all__ = [
 
 
 def localizer_config(args: argparse.Namespace) -> Any:
-    """The localizer's settings from ``--threshold``, ``--no-active-vision``, ``--downsample``."""
-    from localizer import FastConfig, LocalizerConfig
+    """The localizer's settings from ``--threshold``, ``--no-active-vision`` and the
+    similarity options (``--downsample``, ``--zoom``, ``--highpass``)."""
+    from localizer import LocalizerConfig
 
-    fast = FastConfig() if args.downsample is None else FastConfig(fine_downsample=args.downsample)
     return LocalizerConfig(
-        threshold=args.threshold, active_vision=not args.no_active_vision, fast=fast
+        threshold=args.threshold, active_vision=not args.no_active_vision, fast=fast_config(args)
     )
 
 

@@ -250,7 +250,15 @@ def test_bad_threshold(value: str, tmp_path: Path, capfd: pytest.CaptureFixture[
 
 
 @pytest.mark.parametrize(
-    ("flag", "value"), [("--downsample", "0"), ("--fov-deg", "400"), ("--keep-top", "0")]
+    ("flag", "value"),
+    [
+        ("--downsample", "0"),
+        ("--fov-deg", "400"),
+        ("--keep-top", "0"),
+        ("--zoom", "1.2,0.9"),
+        ("--zoom", "x"),
+        ("--highpass", "2"),
+    ],
 )
 def test_bad_matching_option(
     flag: str, value: str, tmp_path: Path, capfd: pytest.CaptureFixture[str]
@@ -370,8 +378,14 @@ def rolled_pair(tmp_path: Path) -> tuple[Path, Path]:
 
 @pytest.mark.parametrize(
     "extra",
-    [[], ["--downsample", "4"], ["--every-offset"], ["--reference"]],
-    ids=["fast", "downsample-4", "every-offset", "reference"],
+    [
+        [],
+        ["--downsample", "4"],
+        ["--every-offset"],
+        ["--reference"],
+        ["--zoom", "1.15,1.3", "--highpass", "0.125"],
+    ],
+    ids=["fast", "downsample-4", "every-offset", "reference", "zoom-highpass"],
 )
 def test_match_cyclic_permutation(
     extra: list[str], tmp_path: Path, capfd: pytest.CaptureFixture[str]
