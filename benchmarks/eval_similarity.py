@@ -56,6 +56,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path, help="folders of pipemap sim --save-sweeps")
     parser.add_argument("--thresholds", type=_thresholds, default="0.26:0.40:0.01")
+    parser.add_argument("--only", choices=sorted(CONFIGS), default=None, help="one of them")
     args = parser.parse_args()
     runs = []
     for run in args.runs:
@@ -64,6 +65,8 @@ def main() -> None:
     decisions = sum(len(sets) - 1 for _, sets, _ in runs)
     print(f"# wrong known/new decisions of {decisions} in {len(runs)} runs (first visits aside)")
     for name, fast in CONFIGS.items():
+        if args.only and name != args.only:
+            continue
         for t in args.thresholds:
             config = LocalizerConfig(threshold=float(t), active_vision=False, fast=fast)
             wrong = {run: _wrong(sets, labels, config) for run, sets, labels in runs}
