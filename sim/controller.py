@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from sim.episode import Pose, Sweep, sweep_start_angle
 from sim.robot import NS_PER_S, EncoderReading, ImuReading, PlanarPose, RangeReading, Reading, Robot
@@ -102,6 +103,9 @@ class ExplorerConfig:
     settle_ns: int = 500_000_000
     settle_tolerance_m: float = 0.003
     settle_clear_deg: float = 80.0
+    #: A corner whose pipes turn by less than this is centred where their axes cross
+    #: (see :func:`_axes_crossing`); a sharper one by its widest circle alone.
+    shallow_corner_deg: float = 70.0
     #: A bend passed while following: the heading turned by more than ``bend_deg``
     #: over ``bend_window_m`` and held within ``bend_settle_deg`` over ``bend_settle_m``.
     bend_deg: float = 15.0
@@ -122,6 +126,75 @@ class ExplorationResult:
     events: list[tuple[int, str]] = field(default_factory=list)
     distance_m: float = 0.0
     duration_ns: int = 0
+
+
+_CORNER_REACH_M = 0.16
+_STRAIGHT_DEG = 10.0
+
+
+def _seen(samples: list[tuple[float, float]], forward_m: float, offsets: np.ndarray) -> np.ndarray:
+    """Which ``offsets`` from the scan's centre lie inside the pipe: nearer than the
+    wall the scan saw in their direction (the sample of nearest heading)."""
+    yaws = np.array([y for y, _ in samples]) % (2.0 * math.pi)
+    reach = forward_m + np.array([r for _, r in samples])
+    order = np.argsort(yaws)
+    yaws, reach = yaws[order], reach[order]
+    bearing = np.arctan2(offsets[:, 1], offsets[:, 0]) % (2.0 * math.pi)
+    after = np.searchsorted(yaws, bearing) % len(yaws)
+    before = (after - 1) % len(yaws)
+    gap_after = np.abs(np.remainder(yaws[after] - bearing + math.pi, 2.0 * math.pi) - math.pi)
+    gap_before = np.abs(np.remainder(yaws[before] - bearing + math.pi, 2.0 * math.pi) - math.pi)
+    nearest = np.where(gap_after < gap_before, after, before)
+    inside: np.ndarray = np.linalg.norm(offsets, axis=1) < reach[nearest]
+    return inside
+
+
+def _axes_crossing(
+    samples: list[tuple[float, float]],
+    forward_m: float,
+    walls: np.ndarray,
+    here: np.ndarray,
+    guess: np.ndarray,
+    openings: list[float],
+    shallow_deg: float,
+) -> np.ndarray | None:
+    """Centre of a shallow corner: where the axes of its two pipes cross.
+
+    Every point on a pipe's axis fits a circle of the pipe's radius, so the widest
+    points of a corner's scan lie on two arms, one along each pipe. The apex fits a
+    wider circle only by ``1/cos(turn/2)``: 8 mm for a 43 degree turn, about the
+    tolerance of the scan, so the widest circle alone can settle anywhere on the
+    arms (it missed a 137 degree corner by 8 cm). Instead each arm's axis is fitted to
+    its points (their mean offset across the arm's direction) and the two axes are
+    crossed. ``None`` when the corner is sharp (the widest circle is then clear), or
+    when an arm has too few points to fit.
+    """
+    u = np.array([[math.cos(o), math.sin(o)] for o in openings])
+    turn = math.pi - abs(math.remainder(openings[0] - openings[1], 2.0 * math.pi))
+    if not math.radians(_STRAIGHT_DEG) < turn < math.radians(shallow_deg):
+        return None  # sharp, or two ends of one straight pipe (an open entry)
+    # The robot may stand well up one arm (the approach misjudged the distance), so
+    # look twice as far as the widest-circle search does for both arms.
+    offsets_m = np.arange(-_CORNER_REACH_M, _CORNER_REACH_M + 1e-9, 0.002)
+    gx, gy = np.meshgrid(offsets_m, offsets_m)
+    centres = here + np.stack([gx.ravel(), gy.ravel()], 1)
+    centres = centres[_seen(samples, forward_m, centres - here)]
+    clearance, _ = cKDTree(walls).query(centres)
+    widest = centres[clearance >= clearance.max() - 0.003]
+    normals = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    across = widest @ normals.T  # (P, 2): each point's offset across either arm
+    # First guess of the arms: the direction each point lies in from the guess.
+    arm = np.argmax((widest - guess) @ u.T, axis=1)
+    offsets = np.zeros(2)
+    for _ in range(3):
+        for k in range(2):
+            if np.count_nonzero(arm == k) < 3:
+                return None
+            offsets[k] = float(np.mean(across[arm == k, k]))
+        # Then each point goes to the axis it lies nearer to, and the axes are refitted.
+        arm = np.argmin(np.abs(across - offsets), axis=1)
+    crossing: np.ndarray = np.linalg.solve(normals, offsets)
+    return crossing
 
 
 class Explorer:
@@ -379,6 +452,13 @@ class Explorer:
         widest = clearance >= clearance.max() - 0.003
         nearest = np.argmin(np.linalg.norm(centres[widest] - expected, axis=1))
         target = centres[widest][int(nearest)]
+        openings = self._openings(samples)
+        if len(openings) == 2:
+            corner = _axes_crossing(
+                samples, forward, points, self._xy_est, target, openings, c.shallow_corner_deg
+            )
+            if corner is not None:
+                target = corner
         move = target - self._xy_est
         distance = float(np.linalg.norm(move))
         if distance > 0.01:
@@ -392,7 +472,6 @@ class Explorer:
         # 80 degrees of it (a dead end, a right-angle corner or T), not at a Y or a
         # sharp corner, whose walls ahead stand at other distances.
         clear = math.radians(c.settle_clear_deg)
-        openings = self._openings(samples)
         if all(abs(math.remainder(o - facing, 2.0 * math.pi)) > clear for o in openings):
             return self._settle_on_wall_ahead()
         return None
