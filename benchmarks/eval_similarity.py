@@ -9,7 +9,9 @@ order, the true node in each ``info.txt``). Every run is localized visit by visi
 as ``pipemap map`` does (no probes), once per threshold, with:
 
 * ``paper``: the paper's Algorithm 2 (the default);
-* ``robust``: ``--zoom 1.15,1.3 --highpass 0.175``.
+* ``zoom+highpass``: ``--zoom 1.15,1.3 --highpass 0.175``;
+* ``robust``: ``--robust`` (``--zoom 1.15,1.3 --highpass 0.125 --baseline``; its
+  scores sit near 0, so give it thresholds like ``--thresholds 0.04:0.09:0.005``).
 
 A decision is wrong if a new junction is declared known, or a revisit is not
 matched to its junction's node. Prints wrong decisions per threshold, in total and
@@ -25,10 +27,12 @@ import numpy as np
 
 from localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
 from pipemap.folders import load_image_sets, read_info
+from pipemap.parser import ROBUST_HIGHPASS, ROBUST_ZOOMS
 
 CONFIGS = {
     "paper": FastConfig(),
-    "robust": FastConfig(zooms=(1.15, 1.3), highpass_fraction=0.175),
+    "zoom+highpass": FastConfig(zooms=(1.15, 1.3), highpass_fraction=0.175),
+    "robust": FastConfig(zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS, baseline=True),
 }
 
 
@@ -71,7 +75,7 @@ def main() -> None:
             config = LocalizerConfig(threshold=float(t), active_vision=False, fast=fast)
             wrong = {run: _wrong(sets, labels, config) for run, sets, labels in runs}
             detail = " ".join(f"{run}:{n}" for run, n in wrong.items() if n)
-            print(f"{name:<7} {t:.2f} {sum(wrong.values()):4d}  {detail}", flush=True)
+            print(f"{name:<14} {t:.3f} {sum(wrong.values()):4d}  {detail}", flush=True)
 
 
 if __name__ == "__main__":

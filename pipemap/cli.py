@@ -13,13 +13,14 @@ import sys
 from collections.abc import Sequence
 
 from pipemap.errors import PipemapError
-from pipemap.parser import build_parser
+from pipemap.parser import apply_presets, build_parser
 
 __all__ = ["main"]
 
 
 def _run(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
+    apply_presets(args)
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.WARNING,
         format="pipemap: %(levelname)s: %(message)s",

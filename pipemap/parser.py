@@ -73,6 +73,32 @@ def _zooms(text: str) -> tuple[float, ...]:
         ) from None
 
 
+#: The paper's known/new threshold, for its similarity.
+PAPER_THRESHOLD = 0.36
+#: ``--robust``: zoom search, high-pass and baseline, and the threshold that goes with
+#: them (measured with ``benchmarks/eval_similarity.py``; see the README).
+ROBUST_ZOOMS = (1.15, 1.3)
+ROBUST_HIGHPASS = 0.125
+ROBUST_THRESHOLD = 0.062
+_THRESHOLD_HELP = (
+    f"known/new threshold (default {PAPER_THRESHOLD}, or {ROBUST_THRESHOLD} with --robust)"
+)
+
+
+def apply_presets(args: argparse.Namespace) -> None:
+    """Fill in what ``--robust`` stands for, and the threshold left to its default.
+
+    Options given explicitly win over the preset's."""
+    if not hasattr(args, "baseline"):
+        return
+    if args.robust:
+        args.zoom = args.zoom or ROBUST_ZOOMS
+        args.highpass = args.highpass or ROBUST_HIGHPASS
+        args.baseline = True
+    if args.threshold is None:
+        args.threshold = ROBUST_THRESHOLD if args.robust else PAPER_THRESHOLD
+
+
 def add_similarity_options(p: argparse.ArgumentParser) -> None:
     """The fast path's settings: ``--downsample`` trades accuracy for speed; ``--zoom``
     and ``--highpass`` switch on pipemap's extensions of the paper's similarity (off
@@ -100,6 +126,20 @@ def add_similarity_options(p: argparse.ArgumentParser) -> None:
         "the lamp's brightness fall all junctions share (e.g. 0.175; default off); "
         "it lowers every similarity: tune --threshold with it",
     )
+    p.add_argument(
+        "--robust",
+        action="store_true",
+        help="pipemap's similarity for cameras off the junction centre: --zoom "
+        f"{','.join(map(str, ROBUST_ZOOMS))} --highpass {ROBUST_HIGHPASS} --baseline, "
+        f"threshold {ROBUST_THRESHOLD} unless --threshold is given",
+    )
+    p.add_argument(
+        "--baseline",
+        action="store_true",
+        help="report similarity above the pair's baseline: how alike each set's own "
+        "views 360/N degrees and more apart look (puts imagery of any renderer and "
+        "resolution on one scale; with it, thresholds lie near 0.062)",
+    )
 
 
 def fast_config(args: argparse.Namespace) -> FastConfig:
@@ -107,15 +147,18 @@ def fast_config(args: argparse.Namespace) -> FastConfig:
     from localizer import FastConfig
 
     downsample = FastConfig().fine_downsample if args.downsample is None else args.downsample
-    return FastConfig(fine_downsample=downsample, zooms=args.zoom, highpass_fraction=args.highpass)
+    return FastConfig(
+        fine_downsample=downsample,
+        zooms=args.zoom,
+        highpass_fraction=args.highpass,
+        baseline=args.baseline,
+    )
 
 
 def _add_matching_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("dirs", nargs="+", metavar="DIR", help="image-set folders (camera_image1..N)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument(
-        "--threshold", type=_threshold, default=0.36, help="known/new threshold (default 0.36)"
-    )
+    p.add_argument("--threshold", type=_threshold, default=None, help=_THRESHOLD_HELP)
     p.add_argument(
         "--fov-deg", type=_degrees, default=None, help="horizontal field of view (default 80)"
     )
@@ -245,9 +288,7 @@ def build_parser() -> argparse.ArgumentParser:
     ):
         p_log = sub.add_parser(name, help=helptext, description=description)
         p_log.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
-        p_log.add_argument(
-            "--threshold", type=_threshold, default=0.36, help="known/new threshold (0.36)"
-        )
+        p_log.add_argument("--threshold", type=_threshold, default=None, help=_THRESHOLD_HELP)
         p_log.add_argument(
             "--no-active-vision", action="store_true", help="never ask for probe sweeps"
         )

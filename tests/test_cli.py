@@ -501,3 +501,33 @@ def test_map_table(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
         (dirs[2], "0", "yes"),
     ]
     assert lines[4:] == ["2 nodes; edges: 0-1 (1)"]
+
+
+def test_robust_preset_fills_in_its_settings_and_threshold() -> None:
+    from pipemap.parser import (
+        ROBUST_HIGHPASS,
+        ROBUST_THRESHOLD,
+        ROBUST_ZOOMS,
+        apply_presets,
+        build_parser,
+        fast_config,
+    )
+
+    args = build_parser().parse_args(["score", "run.mcap", "--robust"])
+    apply_presets(args)
+    config = fast_config(args)
+    assert (config.zooms, config.highpass_fraction, config.baseline) == (
+        ROBUST_ZOOMS,
+        ROBUST_HIGHPASS,
+        True,
+    )
+    assert args.threshold == ROBUST_THRESHOLD
+    # Explicit options win; without --robust the paper's settings stand.
+    args = build_parser().parse_args(["map", "d", "--robust", "--threshold", "0.1"])
+    apply_presets(args)
+    assert args.threshold == 0.1
+    args = build_parser().parse_args(["map", "d"])
+    apply_presets(args)
+    assert args.threshold == 0.36
+    assert fast_config(args).baseline is False
+    assert fast_config(args).zooms == ()
