@@ -100,9 +100,10 @@ def apply_presets(args: argparse.Namespace) -> None:
 
 
 def add_similarity_options(p: argparse.ArgumentParser) -> None:
-    """The fast path's settings: ``--downsample`` trades accuracy for speed; ``--zoom``
-    and ``--highpass`` switch on pipemap's extensions of the paper's similarity (off
-    by default, so the defaults are the paper's Algorithm 2)."""
+    """The fast path's settings: ``--downsample`` trades accuracy for speed; ``--zoom``,
+    ``--highpass`` and ``--baseline`` (together with their threshold: ``--robust``)
+    switch on pipemap's extensions of the paper's similarity (off by default, so the
+    defaults are the paper's Algorithm 2)."""
     p.add_argument(
         "--downsample",
         type=_positive_int,
