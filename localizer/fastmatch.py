@@ -557,8 +557,12 @@ class FastMatcher:
             dx_full.reshape(n, m_sets, n).transpose(1, 0, 2),
         )
 
-    def match(self, query: PreparedSet) -> list[SetMatch]:
-        """Algorithm 2 between the query (as A) and every known set (as B)."""
+    def match(self, query: PreparedSet, exclude: int | None = None) -> list[SetMatch]:
+        """Algorithm 2 between the query (as A) and every known set (as B).
+
+        The known set ``exclude`` (if any) cannot be the answer: it is screened but
+        never refined, so the refinement goes to the sets that can.
+        """
         peaks, shifts = self.screen(query)
         if peaks.shape[0] == 0:
             return []
@@ -572,7 +576,10 @@ class FastMatcher:
                 strict=True,
             )
         ]
-        order = sorted(range(len(matches)), key=lambda i: (-matches[i].similarity, i))
+        order = sorted(
+            (i for i in range(len(matches)) if i != exclude),
+            key=lambda i: (-matches[i].similarity, i),
+        )
         n = query.count
         n_offsets = min(self.config.refine_offsets, n)
         # The best candidate decides: refine its most promising offsets. The others
@@ -585,7 +592,8 @@ class FastMatcher:
                 : n_offsets if rank == 0 else n_runner_up
             ]
         ]
-        values, columns = _zoomed_peaks(query, [(self._sets[i], k) for i, k in blocks])
+        if blocks:
+            values, columns = _zoomed_peaks(query, [(self._sets[i], k) for i, k in blocks])
         j = np.arange(n)
         for i in order[: self.config.refine_candidates]:
             peak_ncc = np.full((n, n), -np.inf)

@@ -91,6 +91,13 @@ class LocalizerConfig:
     active_vision: bool = True
     probe_distance_m: float = 0.03
     fast: FastConfig = field(default_factory=FastConfig)
+    #: A visit cannot be the junction of the visit just before it. Between two sweeps
+    #: the robot drives along a pipe, and a pipe joins two different junctions: a node
+    #: is wherever the pipe does more than go straight, so a pipe that returned to its
+    #: own junction would pass a corner node first. Not in the paper, which compares
+    #: with every known junction; turn it off for image sets that are not a traversal
+    #: (several sweeps of one junction in a row).
+    distinct_consecutive: bool = True
 
     def __post_init__(self) -> None:
         if not -1.0 <= self.threshold <= 1.0:
@@ -126,14 +133,18 @@ class Decision:
         return sum(1 for p in self.probes if p.similarity is None)
 
 
-def best_candidate(matches: list[SetMatch]) -> tuple[int | None, float, float | None]:
+def best_candidate(
+    matches: list[SetMatch], exclude: int | None = None
+) -> tuple[int | None, float, float | None]:
     """Algorithm 1's choice: the best candidate, its similarity, the margin to the second.
 
     Only refined matches compete when there are any: a screening score is biased
     (it ranks, it does not measure) and must not decide. Ties go to the earliest
     known junction. The visit is known when the similarity reaches the threshold.
+    The junction ``exclude`` (if any) never competes.
     """
-    pool = [i for i, m in enumerate(matches) if m.refined] or list(range(len(matches)))
+    allowed = [i for i in range(len(matches)) if i != exclude]
+    pool = [i for i in allowed if matches[i].refined] or allowed
     if not pool:
         return None, 0.0, None
     best = max(pool, key=lambda i: (matches[i].similarity, -i))
@@ -178,8 +189,11 @@ class Localizer:
     def _best(
         self, prepared: PreparedSet
     ) -> tuple[list[SetMatch], int | None, float, float | None]:
-        matches = self._matcher.match(prepared)
-        best, sim, margin = best_candidate(matches)
+        exclude = None
+        if self.config.distinct_consecutive and self.map.visits:
+            exclude = self.map.visits[-1]
+        matches = self._matcher.match(prepared, exclude)
+        best, sim, margin = best_candidate(matches, exclude)
         return matches, best, sim, margin
 
     def localize(self, query: ImageSet, probes: ProbeSource | None = None) -> Decision:

@@ -4,8 +4,9 @@ A node per junction, numbered 0, 1, 2, ... in first-visit order; an edge between
 two consecutively visited junctions, labelled 1, 2, 3, ... in the order the edges
 are first traversed. Traversing an edge again adds nothing. Two different pipes
 between the same pair of junctions are one edge: the map records adjacency. Two
-consecutive visits of one junction add a self-loop, a pipe that leaves and
-re-enters the same junction.
+consecutive visits of one junction add a self-loop; the localizer makes them only
+under the paper's rule (``LocalizerConfig.distinct_consecutive`` off), since a pipe
+joins two different junctions.
 """
 
 from __future__ import annotations

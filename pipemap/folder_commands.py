@@ -85,7 +85,12 @@ def run_match(args: argparse.Namespace, out: TextIO) -> int:
 def run_map(args: argparse.Namespace, out: TextIO) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     sets = _load(args)
-    localizer = Localizer(LocalizerConfig(threshold=args.threshold, fast=fast_config(args)))
+    config = LocalizerConfig(
+        threshold=args.threshold,
+        fast=fast_config(args),
+        distinct_consecutive=not args.allow_repeat,
+    )
+    localizer = Localizer(config)
     visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]
     doc = map_document(localizer.map, visits)
     if args.json:

@@ -156,6 +156,18 @@ def fast_config(args: argparse.Namespace) -> FastConfig:
     )
 
 
+def add_repeat_option(p: argparse.ArgumentParser) -> None:
+    """``--allow-repeat``: the paper's rule, under which a visit may be the junction of
+    the visit just before it (pipemap's default rules that out)."""
+    p.add_argument(
+        "--allow-repeat",
+        action="store_true",
+        help="let a visit be the junction of the visit before it, as in the paper (by "
+        "default it cannot: a pipe joins two different junctions); for image sets that "
+        "are not a traversal",
+    )
+
+
 def _add_matching_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("dirs", nargs="+", metavar="DIR", help="image-set folders (camera_image1..N)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -232,6 +244,7 @@ def build_parser() -> argparse.ArgumentParser:
         "for each and build the topological map (Algorithms 1 and 4).",
     )
     _add_matching_options(p_map)
+    add_repeat_option(p_map)
 
     p_sim = sub.add_parser(
         "sim",
@@ -294,6 +307,7 @@ def build_parser() -> argparse.ArgumentParser:
             "--no-active-vision", action="store_true", help="never ask for probe sweeps"
         )
         add_similarity_options(p_log)
+        add_repeat_option(p_log)
         if name == "replay":
             p_log.add_argument(
                 "-o",

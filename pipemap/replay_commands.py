@@ -26,12 +26,15 @@ __all__ = [
 
 
 def localizer_config(args: argparse.Namespace) -> Any:
-    """The localizer's settings from ``--threshold``, ``--no-active-vision`` and the
-    similarity options (``--downsample``, ``--zoom``, ``--highpass``)."""
+    """The localizer's settings from ``--threshold``, ``--no-active-vision``,
+    ``--allow-repeat`` and the similarity options (``--downsample``, ``--zoom``, ...)."""
     from localizer import LocalizerConfig
 
     return LocalizerConfig(
-        threshold=args.threshold, active_vision=not args.no_active_vision, fast=fast_config(args)
+        threshold=args.threshold,
+        active_vision=not args.no_active_vision,
+        fast=fast_config(args),
+        distinct_consecutive=not args.allow_repeat,
     )
 
 
@@ -150,9 +153,11 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         "visit  true  node  known  similarity  margin    rotation  error      outcome",
     ]
     for v in doc["per_visit"]:
+        # A visit without a candidate compared with nothing: no similarity to show.
+        similarity = v["similarity"] if v["candidate"] is not None else None
         lines.append(
             f"{v['visit']}   {v['true_node']:<4}  {v['predicted_node']:<4}  "
-            f"{'yes' if v['known'] else 'no':<5}  {_num(v['similarity']):<10}  "
+            f"{'yes' if v['known'] else 'no':<5}  {_num(similarity):<10}  "
             f"{_num(v['margin']):<8}  {_num(v['rotation_rad']):<9}  "
             f"{_num(v['rotation_error_rad']):<9}  {v['outcome']}"
         )

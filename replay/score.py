@@ -117,10 +117,14 @@ class ScoreReport:
         seen: set[str] = set()
         known_sims: list[float] = []
         unknown_sims: list[float] = []
-        for i, v in enumerate(self.visits):
-            if v.true_node in seen:
+        for v in self.visits:
+            # A visit without a candidate had nothing to compare with: the first, and
+            # the second, which cannot be the junction it came from.
+            if v.candidate is None:
+                pass
+            elif v.true_node in seen:
                 known_sims.append(v.similarity)
-            elif i > 0:  # the first visit has nothing to compare with
+            else:
                 unknown_sims.append(v.similarity)
             seen.add(v.true_node)
         errors = [

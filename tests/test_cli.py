@@ -479,6 +479,21 @@ def test_map_json(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     assert visits[2]["image_shift"] == 0
 
 
+def test_map_allow_repeat_lets_a_set_be_the_junction_before_it(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    a = make_set(tmp_path, "A", seed=1)
+    again = make_set(tmp_path, "A2", seed=1)
+    status, out, err = run(["map", str(a), str(again), "--json"], capfd)
+    assert status == 0, err
+    assert [v["node"] for v in json.loads(out)["visits"]] == [0, 1]  # a pipe joins two
+    status, out, err = run(["map", str(a), str(again), "--json", "--allow-repeat"], capfd)
+    assert status == 0, err
+    doc = json.loads(out)
+    assert [v["node"] for v in doc["visits"]] == [0, 0]  # the paper's rule: a self-loop
+    assert doc["edges"] == [{"u": 0, "v": 0, "label": 1}]
+
+
 def test_map_is_deterministic(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     dirs = map_set_triple(tmp_path)
     first = run(["map", *dirs, "--json"], capfd)

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from localizer.fastmatch import FastConfig
+from localizer.fastmatch import FastConfig, FastMatcher
 from localizer.imageset import ImageSet
 from localizer.localizer import (
     DEFAULT_THRESHOLD,
@@ -95,10 +95,16 @@ class FakeProbes:
 
 
 def _strict_with(*seeds: int, **config: object) -> Localizer:
+    # These tests exercise the paper's rules, under which every known junction competes.
+    config.setdefault("distinct_consecutive", False)
     loc = Localizer(LocalizerConfig(threshold=STRICT, **config))  # type: ignore[arg-type]
     for seed in seeds:
         assert not loc.localize(junction(seed)).known
     return loc
+
+
+#: The paper's rules: every known junction competes, the previous visit's included.
+PAPER = LocalizerConfig(distinct_consecutive=False)
 
 
 def _match(similarity: float) -> SetMatch:
@@ -257,7 +263,7 @@ def test_first_visit_requests_no_probe() -> None:
 
 
 def test_second_different_junction_is_new() -> None:
-    loc = Localizer()
+    loc = Localizer(PAPER)
     loc.localize(junction(0))
     d = loc.localize(junction(1))
     assert d.node == 1
@@ -269,7 +275,7 @@ def test_second_different_junction_is_new() -> None:
 
 
 def test_revisit_is_known() -> None:
-    loc = Localizer()
+    loc = Localizer(PAPER)
     loc.localize(junction(0))
     loc.localize(junction(1))
     d = loc.localize(junction(0))
@@ -365,6 +371,50 @@ def test_unseen_junctions_are_new_under_the_papers_threshold() -> None:
     assert wrongly_known == [], "unseen junctions decided known (visit, node, similarity)"
     assert [d.node for d in decisions] == list(range(8))
     assert relied_on_screen == [], "decisions taken on unrefined screening similarities"
+
+
+# --- consecutive visits are different junctions ---------------------------------------
+
+
+def test_a_visit_is_never_the_junction_it_came_from() -> None:
+    # The same sweep twice in a row: the paper's rules merge them, pipemap's default
+    # cannot (the robot drove a pipe between the sweeps), and has nothing else to try.
+    paper = Localizer(PAPER)
+    paper.localize(junction(0))
+    assert paper.localize(junction(0)).known
+    loc = Localizer()
+    loc.localize(junction(0))
+    d = loc.localize(junction(0))
+    assert (d.node, d.known, d.candidate, d.similarity, d.match) == (1, False, None, 0.0, None)
+    assert loc.map.visits == (0, 1)
+
+
+def test_the_previous_junction_gives_way_to_the_next_best() -> None:
+    loc = Localizer()
+    for seed in (0, 1):
+        loc.localize(junction(seed))
+    d = loc.localize(junction(1, noise=0.5, noise_seed=3))  # looks like 1, came from 1
+    assert d.candidate == 0 and not d.known and d.node == 2
+    assert d.similarity < 0.5
+    assert d.match is not None and d.match.refined
+    assert d.margin is None  # one junction competed
+
+
+def test_the_rule_leaves_true_revisits_alone() -> None:
+    loc = Localizer()
+    nodes = [loc.localize(junction(seed)).node for seed in (0, 1, 0, 2, 0, 2, 1)]
+    assert nodes == [0, 1, 0, 2, 0, 2, 1]
+
+
+def test_the_excluded_junction_is_screened_but_not_refined() -> None:
+    matcher = FastMatcher(FastConfig())
+    for seed in (0, 1, 2):
+        matcher.add(matcher.prepare(junction(seed)))
+    prepared = matcher.prepare(junction(2))
+    matches = matcher.match(prepared, exclude=2)
+    assert matches[2].refined is False
+    assert matches[0].refined and matches[1].refined
+    assert best_candidate(matches, exclude=2)[0] in (0, 1)
 
 
 # --- compare ---------------------------------------------------------------------------

@@ -83,11 +83,21 @@ def test_a_cut_log_replays_its_complete_part(recorded_run: Path, tmp_path: Path)
 
 
 def test_replay_settings_change_the_decisions(recorded_run: Path) -> None:
-    done = pipemap("replay", str(recorded_run), "--threshold", "-1")
+    done = pipemap("replay", str(recorded_run), "--threshold", "-1", "--allow-repeat")
     assert done.returncode == 0, done.stderr
     visits = json.loads(done.stdout)["visits"]
     assert all(v["known"] for v in visits[1:])  # everything matches at -1
     assert json.loads(done.stdout)["nodes"] == [{"id": 0}]
+    # By default a visit cannot be the junction it came from: the second visit is
+    # new, and every later one is known as one of the two junctions it did not leave.
+    done = pipemap("replay", str(recorded_run), "--threshold", "-1")
+    assert done.returncode == 0, done.stderr
+    doc = json.loads(done.stdout)
+    assert [v["known"] for v in doc["visits"][:2]] == [False, False]
+    assert all(v["known"] for v in doc["visits"][2:])
+    assert doc["nodes"] == [{"id": 0}, {"id": 1}]
+    nodes = [v["node"] for v in doc["visits"]]
+    assert all(a != b for a, b in zip(nodes, nodes[1:], strict=False))
 
 
 def test_replay_writes_graphml_and_refuses_to_overwrite(recorded_run: Path, tmp_path: Path) -> None:
