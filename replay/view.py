@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -36,7 +37,14 @@ from replay.view_topics import RobotGeometry, log_robot, log_truth, set_time
 if TYPE_CHECKING:
     import rerun as rr
 
-__all__ = ["APPLICATION_ID", "describe_decision", "log_view", "save_view", "spawn_view"]
+__all__ = [
+    "APPLICATION_ID",
+    "Replayed",
+    "describe_decision",
+    "log_view",
+    "save_view",
+    "spawn_view",
+]
 
 APPLICATION_ID = "pipemap"
 _NAMESPACE = uuid.UUID("5f1d2c1e-8f0b-4a8e-9d4e-70697065de4d")
@@ -116,15 +124,23 @@ def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
         rec.log("log/decisions", rr.TextLog(describe_decision(v), level=level))
 
 
-def log_view(rec: rr.RecordingStream, source: MessageSource, result: ReplayResult) -> None:
-    """Log everything a view shows of ``source`` and its replay ``result`` to ``rec``."""
+#: A replay's result, or a function that waits for one being made elsewhere.
+Replayed = ReplayResult | Callable[[], ReplayResult]
+
+
+def log_view(rec: rr.RecordingStream, source: MessageSource, result: Replayed) -> None:
+    """Log everything a view shows of ``source`` and its replay ``result`` to ``rec``.
+
+    The log's own streams go first; ``result``, if a function, is called only then,
+    so a replay running in another process overlaps them.
+    """
     geometry = RobotGeometry.from_run(source.run_metadata())
     log_robot(rec, source.by_topic(ROBOT_PREFIX), geometry)
     log_truth(rec, source.by_topic("/truth/"))
-    _log_map(rec, result)
+    _log_map(rec, result if isinstance(result, ReplayResult) else result())
 
 
-def save_view(source: MessageSource, result: ReplayResult, path: Path | str) -> None:
+def save_view(source: MessageSource, result: Replayed, path: Path | str) -> None:
     """Write the view of ``source`` and ``result`` to the ``.rrd`` file ``path``.
 
     The file appears whole or not at all: it is written beside ``path`` under a
@@ -145,7 +161,7 @@ def save_view(source: MessageSource, result: ReplayResult, path: Path | str) -> 
         partial.unlink(missing_ok=True)
 
 
-def spawn_view(source: MessageSource, result: ReplayResult) -> None:
+def spawn_view(source: MessageSource, result: Replayed) -> None:
     """Open the view of ``source`` and ``result`` in a rerun viewer (started if need be)."""
     rec = _recording(source)
     rec.spawn(default_blueprint=view_blueprint())

@@ -180,6 +180,17 @@ def test_two_saves_of_one_log_compare_equal(
     assert compared.returncode == 0, compared.stderr + compared.stdout
 
 
+def test_the_command_replaying_in_a_child_process_saves_what_one_process_saves(
+    recorded_run: Path, saved: Path, tmp_path: Path
+) -> None:
+    # `pipemap view` replays in a forked child while it logs the streams itself.
+    source = FileSource(recorded_run)
+    alone = tmp_path / "alone.rrd"
+    save_view(source, replay(source), alone)
+    compared = rerun_cli("rrd", "compare", str(saved), str(alone))
+    assert compared.returncode == 0, compared.stderr + compared.stdout
+
+
 def no_display(monkeypatch: pytest.MonkeyPatch) -> None:
     """As on a headless machine: no X11 or Wayland display."""
     for variable in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
@@ -249,7 +260,9 @@ def test_record_view_save_writes_the_view_beside_the_log(
     )
     assert status == 0, stderr
     rrd = tmp_path / "run.rrd"
-    assert stdout.splitlines()[-1] == f"viewed {log}, written to {rrd}"
+    last = stdout.splitlines()[-1]
+    assert last.startswith(f"viewed {log}: 13 sweeps, 78 images, 13 visits, ")
+    assert last.endswith(f" junctions, written to {rrd}")
     assert rerun_cli("rrd", "verify", str(rrd)).returncode == 0
     images = read_chunks(rrd)
     assert rows(images, "/camera/image", "EncodedImage:blob") == read_log(log).counts[Topic.IMAGE]
