@@ -7,11 +7,11 @@ Every argument is checked before the log is read; an existing file is replaced
 only with ``--force``.
 
 rerun is imported only here (by :mod:`replay.view`), so other commands do not pay
-for it. Its import takes about 0.3 s, and logging the log's streams some more, so
-where the system can fork, the replay runs in a child process on the other core
-while this one imports rerun and logs the streams; the child sends back the
-decisions, which are logged last. The recording is the same either way. (Importing
-rerun in a thread saved nothing: the import holds the GIL.)
+for it. Its import takes 0.25-0.35 s. Where the system can fork, a child process
+reads the log, hands it over as a :class:`replay.PackedLog` and replays it, on the
+other core, while this process imports pipemap's modules and rerun; this one then
+logs the streams, and the child's decisions last. The recording is the same either
+way. (Importing rerun in a thread saved nothing: the import holds the GIL.)
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from pipemap.replay_commands import (
 
 if TYPE_CHECKING:
     from localizer import LocalizerConfig
-    from replay import MessageSource, ReplayResult
+    from replay import MessageSource, PackedLog, ReplayResult
     from replay.view import Replayed
 
 __all__ = ["check_view_target", "run_view", "view_recorded"]
@@ -89,78 +89,125 @@ def _show(source: MessageSource, result: Replayed, target: Path | None) -> None:
         save_view(source, result, target)
 
 
-def _replay_beside(
-    source: MessageSource, config: LocalizerConfig, err: TextIO
-) -> Callable[[], ReplayResult]:
-    """Start replaying ``source`` in a child process; returns a function that waits
-    for the result (or raises the child's error). Without ``os.fork``, the replay
-    runs here and now."""
-    from replay import replay
+class _Child:
+    """A forked process that reads the log, hands it over, then replays it.
 
-    if not hasattr(os, "fork"):
-        result = replay(source, config, progress_printer(err))
-        return lambda: result
-    err.flush()
-    read_end, write_end = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: replay, send the result, and leave without cleanup
-        os.close(read_end)
-        status = 0
-        try:
-            done = replay(source, config, progress_printer(err))
-            # The view needs the decisions, not the visits' image sets.
-            payload: Any = dataclasses.replace(done, visit_sets={})
-        except BaseException as exc:  # noqa: BLE001  (handed to the parent to report)
-            payload, status = exc, 1
+    It sends two pickled objects down a pipe: the log as a :class:`PackedLog` (or
+    the error that reading it raised), then the replay's result without the image
+    sets (or its error). Meanwhile the parent imports rerun and logs the streams.
+    """
+
+    def __init__(
+        self,
+        open_log: Callable[[], MessageSource],
+        config: Callable[[], LocalizerConfig],
+        err: TextIO,
+    ) -> None:
+        err.flush()
+        read_end, write_end = os.pipe()
+        self._pid = os.fork()
+        if self._pid == 0:
+            os.close(read_end)
+            self._run(open_log, config, err, write_end)  # never returns
+        os.close(write_end)
+        self._pipe = os.fdopen(read_end, "rb")
+        self._done = False
+        self._result: ReplayResult | None = None
+
+    @staticmethod
+    def _run(
+        open_log: Callable[[], MessageSource],
+        config: Callable[[], LocalizerConfig],
+        err: TextIO,
+        write_end: int,
+    ) -> None:
+        status = 1
         try:
             with os.fdopen(write_end, "wb") as pipe:
-                pickle.dump(payload, pipe, protocol=pickle.HIGHEST_PROTOCOL)
+                try:
+                    from replay import PackedLog, replay
+
+                    source = open_log()
+                    pickle.dump(PackedLog.of(source, _VIEWED), pipe, protocol=_PROTOCOL)
+                    pipe.flush()
+                    done = replay(source, config(), progress_printer(err))
+                    # The view needs the decisions, not the visits' image sets.
+                    payload: Any = dataclasses.replace(done, visit_sets={})
+                    status = 0
+                except BaseException as exc:  # noqa: BLE001  (the parent reports it)
+                    payload = exc
+                pickle.dump(payload, pipe, protocol=_PROTOCOL)
             err.flush()
         finally:
             os._exit(status)
-    os.close(write_end)
 
-    def wait() -> ReplayResult:
-        with os.fdopen(read_end, "rb") as pipe:
-            data = pipe.read()
-        _, status = os.waitpid(pid, 0)
-        if not data:
-            raise ViewerError(f"the replay process ended without a result (status {status})")
-        payload = pickle.loads(data)
+    def _next(self) -> Any:
+        try:
+            payload = pickle.load(self._pipe)
+        except EOFError:
+            self.close()
+            raise ViewerError("the replay process ended without a result") from None
         if isinstance(payload, BaseException):
+            self.close()
             raise payload
-        result: ReplayResult = payload
-        return result
+        return payload
 
-    return wait
+    def log(self) -> MessageSource:
+        """The log, as the child read it."""
+        packed: PackedLog = self._next()
+        return packed.source()
+
+    def result(self) -> ReplayResult:
+        """The replay's result, once the child has it."""
+        if self._result is None:
+            self._result = self._next()
+            self.close()
+        return self._result
+
+    def close(self) -> None:
+        """Wait for the child to end (idempotent)."""
+        if not self._done:
+            self._done = True
+            self._pipe.close()
+            os.waitpid(self._pid, 0)
+
+
+#: What a view shows of a log, and the pickle protocol that carries it.
+_VIEWED = ("/robot/", "/truth/")
+_PROTOCOL = pickle.HIGHEST_PROTOCOL
 
 
 def _view(
-    source: MessageSource,
-    config: LocalizerConfig,
+    open_log: Callable[[], MessageSource],
+    config: Callable[[], LocalizerConfig],
     target: Path | None,
     name: str,
     out: TextIO,
     err: TextIO,
 ) -> None:
-    """Replay ``source`` beside the view's own logging, then show or save the view."""
-    waiting = _replay_beside(source, config, err)
-    got: list[ReplayResult] = []
-    waited = False
+    """Read and replay the log beside the view's own work, then show or save the view.
 
-    def result() -> ReplayResult:
-        nonlocal waited
-        if not waited:
-            waited = True
-            got.append(waiting())
-        return got[0]
+    Where the system can fork, a child reads and replays the log while this process
+    imports rerun; this one then logs the streams, and the decisions last.
+    """
+    if not hasattr(os, "fork"):
+        from replay import replay
 
-    try:
-        _show(source, result, target)
-    finally:
-        if not waited:  # the view failed first: still wait for the child
-            result()
-    done = got[0]
+        source = open_log()
+        done = replay(source, config(), progress_printer(err))
+        _show(source, done, target)
+    else:
+        child = _Child(open_log, config, err)
+        try:
+            # Imported here while the child reads the log, not after.
+            import rerun  # noqa: F401
+
+            from replay import view  # noqa: F401
+
+            _show(child.log(), child.result, target)
+            done = child.result()
+        finally:
+            child.close()
     for warning in done.warnings:
         err.write(f"pipemap: note: {warning}\n")
     where = "sent to the rerun viewer" if target is None else f"written to {target}"
@@ -174,7 +221,14 @@ def view_recorded(
     from localizer import LocalizerConfig
     from replay import FileSource
 
-    _view(FileSource(log), LocalizerConfig(threshold=threshold), target, str(log), out, err)
+    _view(
+        lambda: FileSource(log),
+        lambda: LocalizerConfig(threshold=threshold),
+        target,
+        str(log),
+        out,
+        err,
+    )
 
 
 def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -182,7 +236,12 @@ def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
     target = _target(args)
     if target is None:
         _check_display()
-    config = localizer_config(args)
-    source = open_source(args, err)
-    _view(source, config, target, args.log, out, err)
+    _view(
+        lambda: open_source(args, err),
+        lambda: localizer_config(args),
+        target,
+        args.log,
+        out,
+        err,
+    )
     return 0

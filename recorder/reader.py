@@ -15,13 +15,16 @@ A file that is not MCAP, is empty, or was written by another program raises
 
 from __future__ import annotations
 
+import contextlib
 import enum
+import gc
 import struct
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from io import BytesIO
 from pathlib import Path
+from typing import NamedTuple
 
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
@@ -31,7 +34,7 @@ from mcap.stream_reader import breakup_chunk
 from pipemap.errors import LogFormatError
 from recorder.topics import LIBRARY, METADATA_RUN
 
-__all__ = ["Integrity", "LogChannel", "LogContents", "LogMessage", "read_log"]
+__all__ = ["Integrity", "LogChannel", "LogContents", "LogMessage", "gc_paused", "read_log"]
 
 _MAGIC = b"\x89MCAP0\r\n"
 _RECORD_HEAD = struct.Struct("<BQ")
@@ -54,9 +57,12 @@ class LogChannel:
     schema_name: str
 
 
-@dataclass(frozen=True)
-class LogMessage:
-    """One message, still encoded: decode ``data`` with the topic's message class."""
+class LogMessage(NamedTuple):
+    """One message, still encoded: decode ``data`` with the topic's message class.
+
+    A named tuple, not a frozen dataclass: a log holds some 84 000 of these, and a
+    tuple is made five times faster.
+    """
 
     topic: str
     log_time_ns: int
@@ -180,6 +186,20 @@ def _check_header(reader: _Reader, path: Path) -> int:
     return int(body_start + length)
 
 
+@contextlib.contextmanager
+def gc_paused() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector for a bulk read. A log holds tens of
+    thousands of small messages with no reference cycles among them, and the
+    collector's passes over them took a quarter of the reading time."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
 def read_log(path: Path | str, keep: Callable[[str], bool] | None = None) -> LogContents:
     """Read the log at ``path``; keep the messages of the topics ``keep`` accepts
     (default: all). Counts, times and metadata cover every topic."""
@@ -192,6 +212,11 @@ def read_log(path: Path | str, keep: Callable[[str], bool] | None = None) -> Log
         raise LogFormatError(f"{path}: is a folder, not a log file") from None
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read ({exc.strerror})") from None
+    with gc_paused():
+        return _read(data, path, keep)
+
+
+def _read(data: bytes, path: Path, keep: Callable[[str], bool] | None) -> LogContents:
     reader = _Reader(data, keep if keep is not None else (lambda _topic: True))
     position = _check_header(reader, path)
     contents = reader.contents

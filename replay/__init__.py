@@ -17,13 +17,14 @@ from replay.score import (
     score_replay,
     true_sweeps,
 )
-from replay.source import FileSource, MemorySource, MessageSource, ordered
+from replay.source import FileSource, MemorySource, MessageSource, PackedLog, ordered
 
 __all__ = [
     "FileSource",
     "LoggedSweep",
     "MemorySource",
     "MessageSource",
+    "PackedLog",
     "PairStatistics",
     "ReplayResult",
     "ScoreReport",
