@@ -1,8 +1,8 @@
 """``pipemap view``: a log and its replay in the rerun viewer, or in an ``.rrd`` file.
 
-The log is replayed first (the map and the decisions are the replay's, as ``pipemap
-replay`` makes them), then everything goes to rerun on the log's simulated time:
-to a viewer it starts (or one already running), or with ``--save`` to a file.
+The map and the decisions are the replay's, as ``pipemap replay`` makes them; they
+go to rerun with the log's streams, on the log's simulated time: to a viewer it
+starts (or one already running), or with ``--save`` to a file.
 Every argument is checked before the log is read; an existing file is replaced
 only with ``--force``.
 
@@ -144,7 +144,7 @@ class _Child:
     def _next(self) -> Any:
         try:
             payload = pickle.load(self._pipe)
-        except EOFError:
+        except (EOFError, pickle.UnpicklingError):
             self.close()
             raise ViewerError("the replay process ended without a result") from None
         if isinstance(payload, BaseException):
