@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import networkx as nx
+if TYPE_CHECKING:
+    import networkx as nx
 
 __all__ = ["TopoMap", "MapEdge"]
 
@@ -30,16 +31,27 @@ class MapEdge:
 
 
 class TopoMap:
-    """A growing topological map. :meth:`visit` is Algorithm 4's update step."""
+    """A growing topological map. :meth:`visit` is Algorithm 4's update step.
+
+    It keeps its own edge list; networkx (0.09 s to import) is loaded only when
+    :attr:`graph` is asked for.
+    """
 
     def __init__(self) -> None:
-        self._graph: nx.Graph = nx.Graph()
+        self._nodes = 0
+        self._edges: dict[frozenset[int], MapEdge] = {}
         self._visits: list[int] = []
 
     @property
     def graph(self) -> nx.Graph:
         """A copy of the map as a networkx graph; edges carry ``label``."""
-        return self._graph.copy()
+        import networkx as nx
+
+        graph = nx.Graph()
+        graph.add_nodes_from(range(self._nodes))
+        for e in self._edges.values():
+            graph.add_edge(e.u, e.v, label=e.label)
+        return graph
 
     @property
     def visits(self) -> tuple[int, ...]:
@@ -49,44 +61,35 @@ class TopoMap:
     @property
     def node_count(self) -> int:
         """Number of junctions in the map."""
-        return int(self._graph.number_of_nodes())
+        return self._nodes
 
     def visit(self, node: int) -> MapEdge | None:
         """Record that the robot is at ``node``; returns the edge it added, if any.
 
         ``node`` must be a known node or the next new one (``node_count``).
         """
-        if not 0 <= node <= self.node_count:
+        if not 0 <= node <= self._nodes:
             raise ValueError(f"node {node} is neither known nor the next new node")
-        if node == self.node_count:
-            self._graph.add_node(node)
+        if node == self._nodes:
+            self._nodes += 1
         added = None
         if self._visits:
             previous = self._visits[-1]
-            if not self._graph.has_edge(previous, node):
-                label = self._graph.number_of_edges() + 1
-                self._graph.add_edge(previous, node, label=label)
-                added = MapEdge(previous, node, label)
+            key = frozenset((previous, node))
+            if key not in self._edges:
+                added = MapEdge(previous, node, len(self._edges) + 1)
+                self._edges[key] = added
         self._visits.append(node)
         return added
 
     def edges(self) -> list[MapEdge]:
         """Edges in label order, each as first traversed."""
-        found = [
-            MapEdge(int(u), int(v), int(data["label"]))
-            for u, v, data in self._graph.edges(data=True)
-        ]
-        ordered = sorted(found, key=lambda e: e.label)
-        # networkx keeps no direction; restore first-traversal order from the visits.
-        first: dict[frozenset[int], tuple[int, int]] = {}
-        for a, b in zip(self._visits, self._visits[1:], strict=False):
-            first.setdefault(frozenset((a, b)), (a, b))
-        return [MapEdge(*first[frozenset((e.u, e.v))], label=e.label) for e in ordered]
+        return list(self._edges.values())
 
     def to_dict(self) -> dict[str, Any]:
         """Nodes in id order and edges in label order, as plain JSON-ready data."""
         return {
-            "nodes": [{"id": int(n)} for n in sorted(self._graph.nodes)],
+            "nodes": [{"id": n} for n in range(self._nodes)],
             "edges": [{"u": e.u, "v": e.v, "label": e.label} for e in self.edges()],
         }
 

@@ -8,10 +8,35 @@ reads one back, whole or up to where it was cut or damaged.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from recorder.reader import Integrity, LogChannel, LogContents, LogMessage, read_log
-from recorder.session import Progress, RecordResult, RecordSettings, record_run
 from recorder.topics import FORMAT_VERSION, METADATA_RESULT, METADATA_RUN, TOPICS, Topic
-from recorder.writer import LogWriter
+
+if TYPE_CHECKING:
+    from recorder.session import Progress, RecordResult, RecordSettings, record_run
+    from recorder.writer import LogWriter
+
+#: Loaded on first use (PEP 562): recording pulls in the simulator, which a command
+#: that only reads logs should not pay for (0.1 s).
+_LAZY = {
+    "Progress": "recorder.session",
+    "RecordResult": "recorder.session",
+    "RecordSettings": "recorder.session",
+    "record_run": "recorder.session",
+    "LogWriter": "recorder.writer",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module 'recorder' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "FORMAT_VERSION",

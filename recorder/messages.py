@@ -8,6 +8,7 @@ lossless PNG: a replay must see exactly what the robot saw.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -22,9 +23,11 @@ from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
-from localizer import Decision as LocalizerDecision
 from recorder import schemas
-from sim.network import Network
+
+if TYPE_CHECKING:
+    from localizer import Decision as LocalizerDecision
+    from sim.network import Network
 
 __all__ = [
     "WORLD_FRAME",
