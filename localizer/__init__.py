@@ -33,6 +33,7 @@ from localizer.similarity import (
     wrap_angle_rad,
 )
 from localizer.topomap import MapEdge, TopoMap
+from localizer.twoview import SweepFeatures, TwoViewConfig, TwoViewFit, fit_two_view, sweep_features
 
 __all__ = [
     "DEFAULT_FOV_RAD",
@@ -53,11 +54,15 @@ __all__ = [
     "ProbeRequest",
     "ProbeSource",
     "SetMatch",
+    "SweepFeatures",
     "TopoMap",
+    "TwoViewConfig",
+    "TwoViewFit",
     "best_offset",
     "best_candidate",
     "decision_record",
     "dumps_document",
+    "fit_two_view",
     "map_document",
     "ncc_same",
     "pair_peak",
@@ -67,5 +72,6 @@ __all__ = [
     "probe_plan",
     "reference_match",
     "relative_rotation_rad",
+    "sweep_features",
     "wrap_angle_rad",
 ]

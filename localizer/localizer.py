@@ -23,6 +23,7 @@ from localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
 from localizer.imageset import ImageSet
 from localizer.similarity import SetMatch
 from localizer.topomap import TopoMap
+from localizer.twoview import SweepFeatures, TwoViewConfig, TwoViewFit, fit_two_view, sweep_features
 from pipemap.errors import LocalizerError
 
 __all__ = [
@@ -98,6 +99,13 @@ class LocalizerConfig:
     #: with every known junction; turn it off for image sets that are not a traversal
     #: (several sweeps of one junction in a row).
     distinct_consecutive: bool = True
+    #: Estimate the rotation of a recognised junction by two-view geometry (see
+    #: :mod:`localizer.twoview`), and report it as the decision's rotation. Not in the
+    #: paper. It assumes the camera turns about its own centre, as pipemap's robot's
+    #: does; the paper's Gazebo camera sits 2 cm ahead of its turn axis, and on its
+    #: image sets from different entries the paper's estimate is the better one.
+    two_view: bool = True
+    two_view_config: TwoViewConfig = field(default_factory=TwoViewConfig)
 
     def __post_init__(self) -> None:
         if not -1.0 <= self.threshold <= 1.0:
@@ -117,6 +125,8 @@ class Decision:
     the second-best similarity among the refined candidates (``None`` with fewer
     than two).
     ``missing_probes`` counts requested probes the caller could not supply.
+    ``two_view`` is the two-view fit with the recognised junction (known visits
+    only, with ``LocalizerConfig.two_view``; ``None`` if too few keypoints fit).
     """
 
     node: int
@@ -126,6 +136,15 @@ class Decision:
     margin: float | None
     match: SetMatch | None
     probes: tuple[ProbeOutcome, ...] = ()
+    two_view: TwoViewFit | None = None
+
+    @property
+    def rotation_rad(self) -> float | None:
+        """The best rotation estimate from this visit's heading to the candidate's:
+        the two-view one if there is one, else the paper's (``None`` without a match)."""
+        if self.two_view is not None:
+            return self.two_view.rotation_rad
+        return None if self.match is None else self.match.rotation_rad
 
     @property
     def missing_probes(self) -> int:
@@ -175,6 +194,7 @@ class Localizer:
     def __init__(self, config: LocalizerConfig | None = None) -> None:
         self.config = config if config is not None else LocalizerConfig()
         self._matcher = FastMatcher(self.config.fast)
+        self._features: list[SweepFeatures] = []  # by node, with ``config.two_view``
         self.map = TopoMap()
 
     @property
@@ -205,6 +225,7 @@ class Localizer:
         prepared = self._matcher.prepare(query)
         matches, best, sim, margin = self._best(prepared)
         match = matches[best] if best is not None else None
+        matched, turn = query, 0.0  # the sweep that gave ``match``, and its turn
         outcomes: list[ProbeOutcome] = []
         weak = best is not None and sim < self.config.threshold
         if weak and self.config.active_vision and probes is not None and match is not None:
@@ -220,17 +241,24 @@ class Localizer:
                 if improved:
                     best, sim, margin = p_best, p_sim, p_margin
                     match = p_matches[p_best] if p_best is not None else None
+                    matched, turn = probe_set, request.yaw_rad
                     if match is not None:
                         # The probe's rotation is from the turned heading; report it
                         # from the visit's own, as every other decision is.
                         match = match.turned(request.yaw_rad)
                     break
         known = best is not None and sim >= self.config.threshold
+        fit = None
         if known:
-            assert best is not None
+            assert best is not None and match is not None
             node = best
+            if self.config.two_view:
+                fit = self._two_view(matched, node, match.turned(-turn).rotation_rad)
+                fit = None if fit is None else fit.turned(turn)
         else:
             node = self._matcher.add(prepared)
+            if self.config.two_view:
+                self._features.append(sweep_features(query, self.config.two_view_config))
         self.map.visit(node)
         return Decision(
             node=node,
@@ -240,4 +268,12 @@ class Localizer:
             margin=margin,
             match=match,
             probes=tuple(outcomes),
+            two_view=fit,
+        )
+
+    def _two_view(self, matched: ImageSet, node: int, guess_rad: float) -> TwoViewFit | None:
+        """The two-view fit of the sweep ``matched`` with junction ``node``'s."""
+        config = self.config.two_view_config
+        return fit_two_view(
+            sweep_features(matched, config), self._features[node], config, guess_rad
         )

@@ -30,7 +30,7 @@ def _round(value: float | None) -> float | None:
 
 def decision_record(label: str, decision: Decision) -> dict[str, Any]:
     """One visit of the map document."""
-    match = decision.match
+    match, fit = decision.match, decision.two_view
     return {
         "set": label,
         "node": decision.node,
@@ -42,6 +42,8 @@ def decision_record(label: str, decision: Decision) -> dict[str, Any]:
         "pixel_shift": None if match is None else _round(match.pixel_shift),
         "rotation_rad": None if match is None else _round(match.rotation_rad),
         "rotation_pinhole_rad": None if match is None else _round(match.rotation_pinhole_rad),
+        "rotation_two_view_rad": None if fit is None else _round(fit.rotation_rad),
+        "two_view_inliers": None if fit is None else fit.inliers,
         "probes": [
             {
                 "kind": p.request.kind.value,

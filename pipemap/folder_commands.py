@@ -89,6 +89,7 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
         threshold=args.threshold,
         fast=fast_config(args),
         distinct_consecutive=not args.allow_repeat,
+        two_view=not args.no_two_view,
     )
     localizer = Localizer(config)
     visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]

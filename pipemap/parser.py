@@ -168,6 +168,17 @@ def add_repeat_option(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_two_view_option(p: argparse.ArgumentParser) -> None:
+    """``--no-two-view``: report the paper's rotation instead of the two-view one."""
+    p.add_argument(
+        "--no-two-view",
+        action="store_true",
+        help="report the paper's rotation estimate (NCC peak shift) for known junctions "
+        "instead of the two-view one (keypoints, epipolar geometry); the two-view model "
+        "needs a camera that turns about its own centre, as pipemap's does",
+    )
+
+
 def _add_matching_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("dirs", nargs="+", metavar="DIR", help="image-set folders (camera_image1..N)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -245,6 +256,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_matching_options(p_map)
     add_repeat_option(p_map)
+    add_two_view_option(p_map)
 
     p_sim = sub.add_parser(
         "sim",
@@ -308,6 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
         )
         add_similarity_options(p_log)
         add_repeat_option(p_log)
+        add_two_view_option(p_log)
         if name == "replay":
             p_log.add_argument(
                 "-o",

@@ -27,7 +27,8 @@ __all__ = [
 
 def localizer_config(args: argparse.Namespace) -> Any:
     """The localizer's settings from ``--threshold``, ``--no-active-vision``,
-    ``--allow-repeat`` and the similarity options (``--downsample``, ``--zoom``, ...)."""
+    ``--allow-repeat``, ``--no-two-view`` and the similarity options
+    (``--downsample``, ``--zoom``, ...)."""
     from localizer import LocalizerConfig
 
     return LocalizerConfig(
@@ -35,6 +36,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         active_vision=not args.no_active_vision,
         fast=fast_config(args),
         distinct_consecutive=not args.allow_repeat,
+        two_view=not args.no_two_view,
     )
 
 

@@ -285,8 +285,8 @@ def score_replay(
         seen.add(truth.node)
         estimate = true_turn = error = None
         if d.match is not None and d.candidate is not None:
-            estimate = d.match.rotation_rad
-            if outcome == "correct_known":
+            estimate = d.rotation_rad
+            if outcome == "correct_known" and estimate is not None:
                 # Rotation from this visit's heading to the candidate junction's stored sweep.
                 true_turn = wrap_angle_rad(created[d.candidate][1] - heading)
                 error = wrap_angle_rad(estimate - true_turn)

@@ -86,6 +86,9 @@ def describe_decision(visit: VisitDecision) -> str:
     ]
     if d.match is not None:
         parts.append(f"rotation {d.match.rotation_rad:+.3f} rad")
+    if d.two_view is not None:
+        fit = d.two_view
+        parts.append(f"two-view rotation {fit.rotation_rad:+.4f} rad ({fit.inliers} inliers)")
     if d.probes:
         probes = []
         for p in d.probes:

@@ -13,6 +13,7 @@ from localizer.localizer import Decision, ProbeKind, ProbeOutcome, ProbeRequest
 from localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
 from localizer.similarity import SetMatch
 from localizer.topomap import MapEdge, TopoMap
+from localizer.twoview import TwoViewFit
 
 #: A tree explored depth first: S A B A C D C E C F C A S.
 TREE_VISITS = (0, 1, 2, 1, 3, 4, 3, 5, 3, 6, 3, 1, 0)
@@ -207,6 +208,7 @@ def _decision(
     match: SetMatch | None = None,
     probes: tuple[ProbeOutcome, ...] = (),
     candidate: int | None = None,
+    two_view: TwoViewFit | None = None,
 ) -> Decision:
     return Decision(
         node=node,
@@ -216,6 +218,7 @@ def _decision(
         margin=margin,
         match=match,
         probes=probes,
+        two_view=two_view,
     )
 
 
@@ -256,6 +259,7 @@ def _document_inputs() -> tuple[TopoMap, list[tuple[str, Decision]]]:
                     ProbeOutcome(ProbeRequest(ProbeKind.FORWARD, forward_m=0.03), None, False),
                 ),
                 candidate=0,
+                two_view=TwoViewFit(3.1234567891, 0.5, inliers=250, matches=400),
             ),
         ),
     ]
@@ -281,6 +285,8 @@ def test_map_document_structure() -> None:
         "pixel_shift": None,
         "rotation_rad": None,
         "rotation_pinhole_rad": None,
+        "rotation_two_view_rad": None,
+        "two_view_inliers": None,
         "probes": [],
     }
     assert second["probes"] == [{"kind": "rotate", "similarity": 0.2, "improved": True}]
@@ -299,6 +305,8 @@ def test_document_floats_are_rounded_to_six_decimals() -> None:
     assert third["pixel_shift"] == -1.234568
     assert third["rotation_rad"] == round(math.pi, 6)
     assert third["rotation_pinhole_rad"] == -2.0
+    assert third["rotation_two_view_rad"] == 3.123457
+    assert third["two_view_inliers"] == 250
     text = dumps_document(map_document(m, visits))
     assert "0.912346" in text
     assert "0.912345678" not in text

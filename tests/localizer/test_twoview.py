@@ -1,0 +1,192 @@
+"""Two-view geometry: keypoint bearings and the motion fit between two sweeps."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from localizer.imageset import ImageSet
+from localizer.similarity import wrap_angle_rad
+from localizer.twoview import SweepFeatures, TwoViewConfig, fit_two_view, sweep_features
+
+PIXEL_RAD = 1.0 / 240.0  # about a 400 px image with an 80 degree field of view
+
+
+def _scene(rng: np.random.Generator, count: int) -> np.ndarray:
+    """Points on the walls of a pipe junction around the origin: most 8-15 cm away
+    (the walls), some 0.5-2 m (down the pipes), between 10 cm below and 10 cm above."""
+    azimuth = rng.uniform(-math.pi, math.pi, count)
+    near = rng.random(count) < 0.8
+    distance = np.where(near, rng.uniform(0.08, 0.15, count), rng.uniform(0.5, 2.0, count))
+    height = rng.uniform(-0.1, 0.1, count)
+    return np.stack([distance * np.cos(azimuth), distance * np.sin(azimuth), height], axis=1)
+
+
+def _bearings(points: np.ndarray, position: np.ndarray, heading_rad: float) -> np.ndarray:
+    """Unit bearings of ``points`` from a robot at ``position`` facing ``heading_rad``."""
+    rel = points - position
+    c, s = math.cos(-heading_rad), math.sin(-heading_rad)
+    local = np.stack([c * rel[:, 0] - s * rel[:, 1], s * rel[:, 0] + c * rel[:, 1], rel[:, 2]], 1)
+    noisy = local / np.linalg.norm(local, axis=1, keepdims=True)
+    return noisy
+
+
+def _pair(
+    rng: np.random.Generator,
+    query_heading: float,
+    known_heading: float,
+    offset_m: tuple[float, float],
+    outliers: int = 0,
+    count: int = 600,
+    noise_rad: float = 0.3 * PIXEL_RAD,
+) -> tuple[SweepFeatures, SweepFeatures]:
+    """The same scene seen from the centre (known) and from ``offset_m`` (query), with
+    one random descriptor per point, bearing noise and ``outliers`` random keypoints."""
+    points = _scene(rng, count)
+    descriptors = rng.integers(0, 256, (count, 32), dtype=np.uint8)
+    known = _bearings(points, np.zeros(3), known_heading)
+    query = _bearings(points, np.array([*offset_m, 0.0]), query_heading)
+    query = query + rng.normal(0.0, noise_rad, query.shape)
+    query /= np.linalg.norm(query, axis=1, keepdims=True)
+    if outliers:
+        junk = rng.normal(size=(outliers, 3))
+        query = np.concatenate([query, junk / np.linalg.norm(junk, axis=1, keepdims=True)])
+        descriptors_q = np.concatenate(
+            [descriptors, rng.integers(0, 256, (outliers, 32), dtype=np.uint8)]
+        )
+    else:
+        descriptors_q = descriptors
+    return SweepFeatures(query, descriptors_q, PIXEL_RAD), SweepFeatures(
+        known, descriptors, PIXEL_RAD
+    )
+
+
+@pytest.mark.parametrize(
+    ("query_heading", "known_heading", "offset_m"),
+    [
+        (0.0, 1.0, (0.03, 0.0)),
+        (2.5, -2.0, (-0.02, 0.025)),
+        (-1.0, 0.4, (0.0, -0.035)),
+    ],
+)
+def test_rotation_is_found_through_parallax(
+    query_heading: float, known_heading: float, offset_m: tuple[float, float]
+) -> None:
+    """3 cm off centre, walls 8-15 cm away: the azimuths of matched points differ from
+    the rotation by up to 0.4 rad, yet the fit recovers it to a fraction of a pixel."""
+    rng = np.random.default_rng(7)
+    query, known = _pair(rng, query_heading, known_heading, offset_m, outliers=200)
+    fit = fit_two_view(query, known)
+    assert fit is not None
+    true = wrap_angle_rad(known_heading - query_heading)
+    assert abs(wrap_angle_rad(fit.rotation_rad - true)) < 0.5 * PIXEL_RAD
+    assert fit.inliers >= 570  # of the 600 true matches
+    assert fit.matches >= 600
+    # The motion's direction in the query's frame (modulo pi).
+    direction = math.atan2(offset_m[1], offset_m[0]) - query_heading
+    assert abs(math.remainder(fit.direction_rad - direction, math.pi)) < 0.05
+
+
+def test_parallax_is_large_in_these_scenes() -> None:
+    """The premise of the test above: the mean azimuth shift alone misses the turn."""
+    rng = np.random.default_rng(7)
+    query, known = _pair(rng, 0.0, 1.0, (0.03, 0.0), noise_rad=0.0)
+    shift = np.arctan2(query.bearings[:, 1], query.bearings[:, 0]) - np.arctan2(
+        known.bearings[:, 1], known.bearings[:, 0]
+    )
+    parallax = np.abs(np.remainder(shift - 1.0 + math.pi, 2 * math.pi) - math.pi)
+    assert parallax.max() > 0.3
+
+
+def test_pure_rotation_is_found() -> None:
+    """Both sweeps from one spot: no motion to find, the rotation is still fixed by
+    the points above and below the horizon."""
+    rng = np.random.default_rng(3)
+    query, known = _pair(rng, 0.3, -1.2, (0.0, 0.0), outliers=100)
+    fit = fit_two_view(query, known)
+    assert fit is not None
+    assert abs(wrap_angle_rad(fit.rotation_rad - (-1.5))) < 0.5 * PIXEL_RAD
+
+
+def test_a_wrong_guess_does_not_hide_the_rotation() -> None:
+    rng = np.random.default_rng(5)
+    query, known = _pair(rng, 0.0, 2.0, (0.03, 0.01))
+    fit = fit_two_view(query, known, guess_rad=-1.0)
+    assert fit is not None
+    assert abs(wrap_angle_rad(fit.rotation_rad - 2.0)) < 0.5 * PIXEL_RAD
+
+
+def test_different_places_give_no_fit() -> None:
+    """Keypoints of two unrelated scenes (their descriptors happen to match) fit no
+    single motion."""
+    rng = np.random.default_rng(11)
+    query, _ = _pair(rng, 0.0, 0.0, (0.0, 0.0))
+    _, other = _pair(rng, 0.0, 0.0, (0.0, 0.0))
+    same_descriptors = SweepFeatures(other.bearings, query.descriptors, PIXEL_RAD)
+    assert fit_two_view(query, same_descriptors) is None
+
+
+def test_too_few_matches_give_no_fit() -> None:
+    rng = np.random.default_rng(1)
+    query, known = _pair(rng, 0.0, 0.5, (0.02, 0.0), count=8)
+    assert fit_two_view(query, known, TwoViewConfig(min_inliers=12)) is None
+    empty = SweepFeatures(np.zeros((0, 3)), np.zeros((0, 32), np.uint8), PIXEL_RAD)
+    assert fit_two_view(empty, known) is None
+
+
+def test_turned_fit_adds_the_angle() -> None:
+    rng = np.random.default_rng(2)
+    query, known = _pair(rng, 0.0, 3.0, (0.01, 0.0))
+    fit = fit_two_view(query, known)
+    assert fit is not None
+    assert fit.turned(0.5).rotation_rad == pytest.approx(wrap_angle_rad(fit.rotation_rad + 0.5))
+    assert fit.turned(0.5).inliers == fit.inliers
+
+
+def _textured(seed: int, size: int = 200) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    noise = rng.uniform(0, 255, (size // 8, size // 8)).astype(np.float32)
+    return cv2.resize(noise, (size, size), interpolation=cv2.INTER_CUBIC)
+
+
+def test_keypoints_lie_in_their_images_field_of_view() -> None:
+    """Image j looks ``camera_angle - j * 60 deg`` from the heading; each keypoint's
+    bearing is within half the field of view of that, and in the kept (top) rows."""
+    fov = math.radians(80.0)
+    images = np.stack([_textured(j) for j in range(6)])
+    image_set = ImageSet(images, fov_rad=fov, keep_top_fraction=0.5, camera_angle_rad=0.4)
+    features = sweep_features(image_set)
+    assert len(features) > 100
+    assert features.pixel_rad == pytest.approx(math.tan(fov / 2) / 100.0)
+    assert np.allclose(np.linalg.norm(features.bearings, axis=1), 1.0)
+    azimuth = np.arctan2(features.bearings[:, 1], features.bearings[:, 0])
+    centres = 0.4 - np.arange(6) * math.pi / 3
+    off_axis = np.abs(np.remainder(azimuth[:, None] - centres + math.pi, 2 * math.pi) - math.pi)
+    assert np.all(off_axis.min(axis=1) <= fov / 2)
+    assert np.all(features.bearings[:, 2] > -1e-9)  # the top half only: at or above the horizon
+
+
+def test_camera_angle_turns_every_bearing() -> None:
+    images = np.stack([_textured(10 + j) for j in range(6)])
+    a = sweep_features(ImageSet(images, camera_angle_rad=0.0))
+    b = sweep_features(ImageSet(images, camera_angle_rad=0.7))
+    turn = np.arctan2(b.bearings[:, 1], b.bearings[:, 0]) - np.arctan2(
+        a.bearings[:, 1], a.bearings[:, 0]
+    )
+    assert np.allclose(np.remainder(turn - 0.7 + math.pi, 2 * math.pi) - math.pi, 0.0, atol=1e-9)
+    assert np.array_equal(a.descriptors, b.descriptors)
+
+
+def test_a_sweep_matches_itself_turned() -> None:
+    """The same images with the camera started 60 degrees on: the fit's rotation is
+    the 60 degrees, from real ORB keypoints."""
+    images = np.stack([_textured(20 + j) for j in range(6)])
+    query = sweep_features(ImageSet(images, camera_angle_rad=0.0))
+    known = sweep_features(ImageSet(np.roll(images, 1, axis=0), camera_angle_rad=math.pi / 3))
+    fit = fit_two_view(query, known)
+    assert fit is not None
+    assert abs(wrap_angle_rad(fit.rotation_rad)) < 1e-6
+    assert fit.inliers == fit.matches
