@@ -10,6 +10,7 @@ from localizer.fastmatch import FastConfig, FastMatcher, PreparedSet, pairwise_m
 from localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
 from localizer.localizer import (
     DEFAULT_THRESHOLD,
+    PAPER,
     Decision,
     Localizer,
     LocalizerConfig,
@@ -40,6 +41,7 @@ __all__ = [
     "DEFAULT_KEEP_TOP_FRACTION",
     "DEFAULT_THRESHOLD",
     "FLOAT_DECIMALS",
+    "PAPER",
     "Decision",
     "FastConfig",
     "FastMatcher",

@@ -22,11 +22,11 @@ import statistics
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from localizer import LocalizerConfig
+from localizer import PAPER
 from pipemap import __version__
 from recorder import RecordSettings, record_run
 from replay import FileSource, PairStatistics, replay, score_replay
@@ -107,7 +107,10 @@ def _run(
     recorded = record_run(path, record, network, __version__, overwrite=True)
     wall = time.perf_counter() - start
     source = FileSource(path)
-    result = replay(source, LocalizerConfig(threshold=threshold))
+    # The paper's method, whose tables these are; a visit still cannot be the
+    # junction it just left (the robot drove a pipe between them).
+    paper = replace(PAPER, threshold=threshold, distinct_consecutive=True)
+    result = replay(source, paper)
     scored = score_replay(result, source, threshold)
     report = scored.document()
     report["log"] = path.name

@@ -21,7 +21,7 @@ from localizer import (
     reference_match,
 )
 from pipemap.folders import load_image_sets
-from pipemap.parser import fast_config
+from pipemap.parser import fast_config, two_view_settings
 
 __all__ = ["match_document", "run_map", "run_match"]
 
@@ -89,7 +89,8 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
         threshold=args.threshold,
         fast=fast_config(args),
         distinct_consecutive=not args.allow_repeat,
-        two_view=not args.no_two_view,
+        two_view=two_view_settings(args)[0],
+        verify=two_view_settings(args)[1],
     )
     localizer = Localizer(config)
     visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]

@@ -168,15 +168,28 @@ def add_repeat_option(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_two_view_option(p: argparse.ArgumentParser) -> None:
-    """``--no-two-view``: report the paper's rotation instead of the two-view one."""
+def add_two_view_options(p: argparse.ArgumentParser) -> None:
+    """``--no-verify`` (decide by the threshold) and ``--no-two-view`` (no keypoint
+    geometry at all: the paper's decision and rotation)."""
+    p.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="decide known or new by the similarity threshold, as in the paper, not by "
+        "whether the keypoints of the two sweeps fit one motion",
+    )
     p.add_argument(
         "--no-two-view",
         action="store_true",
-        help="report the paper's rotation estimate (NCC peak shift) for known junctions "
-        "instead of the two-view one (keypoints, epipolar geometry); the two-view model "
-        "needs a camera that turns about its own centre, as pipemap's does",
+        help="no keypoint geometry: the paper's decision and its rotation estimate (NCC "
+        "peak shift); the two-view model needs a camera that turns about its own centre, "
+        "as pipemap's does (implies --no-verify)",
     )
+
+
+def two_view_settings(args: argparse.Namespace) -> tuple[bool, bool]:
+    """``two_view`` and ``verify`` of :class:`localizer.LocalizerConfig` from the flags."""
+    two_view = not args.no_two_view
+    return two_view, two_view and not args.no_verify
 
 
 def _add_matching_options(p: argparse.ArgumentParser) -> None:
@@ -256,7 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_matching_options(p_map)
     add_repeat_option(p_map)
-    add_two_view_option(p_map)
+    add_two_view_options(p_map)
 
     p_sim = sub.add_parser(
         "sim",
@@ -320,7 +333,7 @@ def build_parser() -> argparse.ArgumentParser:
         )
         add_similarity_options(p_log)
         add_repeat_option(p_log)
-        add_two_view_option(p_log)
+        add_two_view_options(p_log)
         if name == "replay":
             p_log.add_argument(
                 "-o",

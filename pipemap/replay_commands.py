@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from pipemap.errors import InputError
-from pipemap.parser import fast_config
+from pipemap.parser import fast_config, two_view_settings
 
 __all__ = [
     "check_output",
@@ -27,7 +27,7 @@ __all__ = [
 
 def localizer_config(args: argparse.Namespace) -> Any:
     """The localizer's settings from ``--threshold``, ``--no-active-vision``,
-    ``--allow-repeat``, ``--no-two-view`` and the similarity options
+    ``--allow-repeat``, ``--no-verify``, ``--no-two-view`` and the similarity options
     (``--downsample``, ``--zoom``, ...)."""
     from localizer import LocalizerConfig
 
@@ -36,7 +36,8 @@ def localizer_config(args: argparse.Namespace) -> Any:
         active_vision=not args.no_active_vision,
         fast=fast_config(args),
         distinct_consecutive=not args.allow_repeat,
-        two_view=not args.no_two_view,
+        two_view=two_view_settings(args)[0],
+        verify=two_view_settings(args)[1],
     )
 
 

@@ -67,7 +67,10 @@ def _drain(stream: BinaryIO, frames: queue.SimpleQueue[bytes | None]) -> None:
     try:
         while True:
             frames.put(_receive_frame(stream))
-    except (EOFError, OSError):
+    except Exception:  # noqa: BLE001
+        # The pipe ended or broke. Reading may also fail when this process closes the
+        # stream while exiting (seen once under load, after a Ctrl-C): either way the
+        # stream is over, and the writer finishes the log with what it has.
         frames.put(None)
 
 

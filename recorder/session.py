@@ -314,9 +314,7 @@ def record_run(
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
     camera = settings.camera()
-    # The online decisions do not depend on the two-view fit, and the log does not
-    # carry it (a replay computes it): no keypoints while recording.
-    localizer = Localizer(LocalizerConfig(threshold=settings.threshold, two_view=False))
+    localizer = Localizer(LocalizerConfig(threshold=settings.threshold))
     mode = "wb" if overwrite else "xb"
     with BackgroundWriter(path, mode, settings.metadata(network, version)) as writer:
         writer.put(ReadyMessage.of(0, Topic.NETWORK, messages.network_message(network)))

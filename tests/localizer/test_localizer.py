@@ -19,6 +19,7 @@ from localizer.fastmatch import FastConfig, FastMatcher
 from localizer.imageset import ImageSet
 from localizer.localizer import (
     DEFAULT_THRESHOLD,
+    PAPER,
     Decision,
     Localizer,
     LocalizerConfig,
@@ -95,16 +96,15 @@ class FakeProbes:
 
 
 def _strict_with(*seeds: int, **config: object) -> Localizer:
-    # These tests exercise the paper's rules, under which every known junction competes.
+    # These tests exercise the paper's rules, under which every known junction competes
+    # and the threshold decides.
     config.setdefault("distinct_consecutive", False)
+    config.setdefault("two_view", False)
+    config.setdefault("verify", False)
     loc = Localizer(LocalizerConfig(threshold=STRICT, **config))  # type: ignore[arg-type]
     for seed in seeds:
         assert not loc.localize(junction(seed)).known
     return loc
-
-
-#: The paper's rules: every known junction competes, the previous visit's included.
-PAPER = LocalizerConfig(distinct_consecutive=False)
 
 
 def _match(similarity: float) -> SetMatch:
@@ -197,12 +197,23 @@ def test_probe_plan_fields_are_exclusive() -> None:
 # --- LocalizerConfig ----------------------------------------------------------------------
 
 
-def test_config_defaults_are_the_papers() -> None:
+def test_config_defaults_are_the_papers_but_three_rules() -> None:
     config = LocalizerConfig()
     assert config.threshold == DEFAULT_THRESHOLD == 0.36
     assert config.active_vision is True
     assert config.probe_distance_m == 0.03
     assert config.fast == FastConfig()
+    # pipemap's own rules, which PAPER turns off.
+    assert (config.distinct_consecutive, config.two_view, config.verify) == (True, True, True)
+    assert (PAPER.distinct_consecutive, PAPER.two_view, PAPER.verify) == (False, False, False)
+    assert PAPER.threshold == config.threshold
+
+
+def test_verify_needs_two_view() -> None:
+    with pytest.raises(LocalizerError, match="two_view"):
+        LocalizerConfig(two_view=False, verify=True)
+    with pytest.raises(LocalizerError, match="verify_inliers"):
+        LocalizerConfig(verify_inliers=0)
 
 
 @pytest.mark.parametrize("threshold", [2.0, 1.0001, -1.0001, -5.0, math.nan], ids=str)
@@ -698,3 +709,34 @@ def test_request_distance_follows_config(distance: float) -> None:
     assert moves[ProbeKind.LEFT] == (0.0, distance, 0.0)
     assert moves[ProbeKind.RIGHT] == (0.0, -distance, 0.0)
     assert moves[ProbeKind.ROTATE][:2] == (0.0, 0.0)
+
+
+# --- The two-view check (pipemap's default decision) ----------------------------------------
+
+
+def test_geometry_decides_not_the_threshold() -> None:
+    """At threshold -1 every similarity passes; the two-view check still keeps three
+    different junctions apart and recognises the revisit, with its rotation."""
+    loc = Localizer(LocalizerConfig(threshold=-1.0))
+    decisions = [loc.localize(junction(seed)) for seed in (0, 1, 2)]
+    assert [d.known for d in decisions] == [False, False, False]
+    assert decisions[2].candidate is not None and decisions[2].two_view is None
+    again = loc.localize(junction(0, roll=2))
+    assert again.known and again.node == 0
+    assert again.two_view is not None and again.two_view.inliers >= 48
+    assert again.rotation_rad == again.two_view.rotation_rad
+
+
+def test_without_verify_the_threshold_decides() -> None:
+    loc = Localizer(LocalizerConfig(threshold=-1.0, verify=False))
+    decisions = [loc.localize(junction(seed)) for seed in (0, 1, 2)]
+    assert decisions[2].known  # everything passes -1
+
+
+def test_too_few_keypoints_leave_the_decision_to_the_threshold() -> None:
+    """Sweeps of a few dozen pixels have too few keypoints to check: the threshold
+    decides them, as in the paper."""
+    tiny = [ImageSet(np.asarray(junction(s).images)[:, ::8, ::8]) for s in (0, 1, 2)]
+    loc = Localizer(LocalizerConfig(threshold=-1.0))
+    decisions = [loc.localize(t) for t in tiny]
+    assert decisions[2].known and decisions[2].two_view is None
