@@ -301,8 +301,8 @@ class Localizer:
             node = best
         else:
             node = self._matcher.add(prepared)
-            if self.config.two_view:
-                if features is None or matched is not query:
+            if features is not None:
+                if matched is not query:  # a probe's: remember the visit's own sweep
                     features = sweep_features(query, self.config.two_view_config)
                 self._features.append(features)
         self.map.visit(node)

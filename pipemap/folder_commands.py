@@ -85,12 +85,13 @@ def run_match(args: argparse.Namespace, out: TextIO) -> int:
 def run_map(args: argparse.Namespace, out: TextIO) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     sets = _load(args)
+    two_view, verify = two_view_settings(args)
     config = LocalizerConfig(
         threshold=args.threshold,
         fast=fast_config(args),
         distinct_consecutive=not args.allow_repeat,
-        two_view=two_view_settings(args)[0],
-        verify=two_view_settings(args)[1],
+        two_view=two_view,
+        verify=verify,
     )
     localizer = Localizer(config)
     visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]

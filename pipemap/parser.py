@@ -156,9 +156,9 @@ def fast_config(args: argparse.Namespace) -> FastConfig:
     )
 
 
-def add_repeat_option(p: argparse.ArgumentParser) -> None:
-    """``--allow-repeat``: the paper's rule, under which a visit may be the junction of
-    the visit just before it (pipemap's default rules that out)."""
+def add_rule_options(p: argparse.ArgumentParser) -> None:
+    """The flags that turn pipemap's own localizer rules back into the paper's:
+    ``--allow-repeat``, ``--no-verify`` and ``--no-two-view``."""
     p.add_argument(
         "--allow-repeat",
         action="store_true",
@@ -166,11 +166,6 @@ def add_repeat_option(p: argparse.ArgumentParser) -> None:
         "default it cannot: a pipe joins two different junctions); for image sets that "
         "are not a traversal",
     )
-
-
-def add_two_view_options(p: argparse.ArgumentParser) -> None:
-    """``--no-verify`` (decide by the threshold) and ``--no-two-view`` (no keypoint
-    geometry at all: the paper's decision and rotation)."""
     p.add_argument(
         "--no-verify",
         action="store_true",
@@ -268,8 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
         "for each and build the topological map (Algorithms 1 and 4).",
     )
     _add_matching_options(p_map)
-    add_repeat_option(p_map)
-    add_two_view_options(p_map)
+    add_rule_options(p_map)
 
     p_sim = sub.add_parser(
         "sim",
@@ -332,8 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
             "--no-active-vision", action="store_true", help="never ask for probe sweeps"
         )
         add_similarity_options(p_log)
-        add_repeat_option(p_log)
-        add_two_view_options(p_log)
+        add_rule_options(p_log)
         if name == "replay":
             p_log.add_argument(
                 "-o",

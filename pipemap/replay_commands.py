@@ -31,13 +31,14 @@ def localizer_config(args: argparse.Namespace) -> Any:
     (``--downsample``, ``--zoom``, ...)."""
     from localizer import LocalizerConfig
 
+    two_view, verify = two_view_settings(args)
     return LocalizerConfig(
         threshold=args.threshold,
         active_vision=not args.no_active_vision,
         fast=fast_config(args),
         distinct_consecutive=not args.allow_repeat,
-        two_view=two_view_settings(args)[0],
-        verify=two_view_settings(args)[1],
+        two_view=two_view,
+        verify=verify,
     )
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -98,10 +99,7 @@ class FakeProbes:
 def _strict_with(*seeds: int, **config: object) -> Localizer:
     # These tests exercise the paper's rules, under which every known junction competes
     # and the threshold decides.
-    config.setdefault("distinct_consecutive", False)
-    config.setdefault("two_view", False)
-    config.setdefault("verify", False)
-    loc = Localizer(LocalizerConfig(threshold=STRICT, **config))  # type: ignore[arg-type]
+    loc = Localizer(replace(PAPER, threshold=STRICT, **config))  # type: ignore[arg-type]
     for seed in seeds:
         assert not loc.localize(junction(seed)).known
     return loc
