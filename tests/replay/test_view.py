@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 
+from pipemap import view_command
 from pipemap.cli import main
 from recorder import Topic, read_log
 from recorder.schemas import CompressedImage, Ranges
@@ -187,6 +188,23 @@ def test_the_command_replaying_in_a_child_process_saves_what_one_process_saves(
     source = FileSource(recorded_run)
     alone = tmp_path / "alone.rrd"
     save_view(source, replay(source), alone)
+    compared = rerun_cli("rrd", "compare", str(saved), str(alone))
+    assert compared.returncode == 0, compared.stderr + compared.stdout
+
+
+def test_the_command_without_a_child_process_saves_the_same(
+    recorded_run: Path,
+    saved: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    # Where no file for the handover can be made (or no fork), one process does it all.
+    monkeypatch.setattr(view_command, "_spool", lambda: None)
+    alone = tmp_path / "alone.rrd"
+    status, out, err = run(["view", str(recorded_run), "--save", str(alone)], capfd)
+    assert status == 0, err
+    assert f"written to {alone}" in out
     compared = rerun_cli("rrd", "compare", str(saved), str(alone))
     assert compared.returncode == 0, compared.stderr + compared.stdout
 
