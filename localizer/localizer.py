@@ -105,8 +105,7 @@ class LocalizerConfig:
     #: Estimate the rotation of a recognised junction by two-view geometry (see
     #: :mod:`localizer.twoview`), and report it as the decision's rotation. Not in the
     #: paper. It assumes the camera turns about its own centre, as pipemap's robot's
-    #: does; the paper's Gazebo camera sits 2 cm ahead of its turn axis, and on its
-    #: image sets from different entries the paper's estimate is the better one.
+    #: does; a robot standing off level (the paper's image sets) is allowed for.
     two_view: bool = True
     two_view_config: TwoViewConfig = field(default_factory=TwoViewConfig)
     #: Decide known or new by two-view geometry (needs ``two_view``): the visit is the

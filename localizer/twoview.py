@@ -22,6 +22,17 @@ refined by Gauss-Newton on those inliers.
 A pure rotation (``t = 0``) still fixes ``rotation_rad``: keypoints above or
 below the horizon leave a residual for any other rotation.
 
+The constraint rests on the keypoints' elevations, so a robot standing a few
+hundredths of a radian off level (the paper's own image sets: pitch and roll up to
+0.05 rad) tilts one panorama against the other by tens of pixels, and the planar
+fit then picks a rotation up to 0.19 rad off. So the planar fit is refined once
+more with the relative tilt free: a 3D rotation (heading change, relative roll
+and pitch) and a 3D direction of motion, by Gauss-Newton on inliers taken within
+a tolerance that shrinks from 16 to 1.5 pixels. It is kept only if it fits
+clearly more keypoints than the planar fit (level sweeps gain nothing from it).
+On those sets it takes the rotation error across entries from 0.077 rad on average
+(max 0.19) to 0.009. The inlier count that checks a match stays the planar fit's.
+
 The inlier count is also a check that both sweeps show the same place: matched
 keypoints of two different junctions do not fit one motion. Keypoints are ORB's
 (OpenCV), matched by Hamming distance with Lowe's ratio test.
@@ -65,6 +76,17 @@ class TwoViewConfig:
     min_inliers: int = 12
     min_inlier_share: float = 0.1
     refine_iterations: int = 6
+    #: Refine the rotation with the relative tilt of the two sweeps free.
+    tilt: bool = True
+    #: Its tolerances, in pixels, tightened in turn (a few iterations each), and the
+    #: largest relative tilt taken as real (more is a fit gone astray).
+    tilt_tolerances_px: tuple[float, ...] = (16.0, 8.0, 4.0, 2.0, 1.5)
+    tilt_iterations: int = 4
+    max_tilt_rad: float = 0.2
+    #: The tilted fit replaces the planar one only if it has this many times its
+    #: inliers: three more unknowns must explain more. Level sweeps (pipemap's
+    #: simulator) gain 0.87-1.04 times, the paper's tilted sets 1.32 times or more.
+    tilt_min_gain: float = 1.2
 
 
 @dataclass(frozen=True)
@@ -92,13 +114,15 @@ class TwoViewFit:
     of :attr:`localizer.similarity.SetMatch.rotation_rad`). ``direction_rad`` is the
     direction of the line between the two spots in the query's heading frame (modulo
     pi: the constraint does not tell forward from back). ``inliers`` of ``matches``
-    fit the motion.
+    fit the planar motion. ``tilt_rad`` is how far one sweep's vertical leans from
+    the other's, as the tilted refinement found it (0.0 without one).
     """
 
     rotation_rad: float
     direction_rad: float
     inliers: int
     matches: int
+    tilt_rad: float = 0.0
 
     def turned(self, angle_rad: float) -> TwoViewFit:
         """The same fit with the query's heading turned by ``angle_rad`` (for a probe
@@ -184,6 +208,23 @@ def _residuals(
     return math.cos(direction_rad) * normal[:, 0] + math.sin(direction_rad) * normal[:, 1]
 
 
+def _direction_counts(
+    a: np.ndarray,
+    b: np.ndarray,
+    rotation_rad: float,
+    cos_d: np.ndarray,
+    sin_d: np.ndarray,
+    tolerance: float,
+) -> np.ndarray:
+    """For each direction of motion (``cos_d``, ``sin_d``: shape ``(D, 1)``), how many
+    matched bearings fit the planar motion with ``rotation_rad`` within ``tolerance``."""
+    normal = np.cross(_turned(b, rotation_rad), a)
+    counts: np.ndarray = (np.abs(cos_d * normal[:, 0] + sin_d * normal[:, 1]) < tolerance).sum(
+        axis=1
+    )
+    return counts
+
+
 def _azimuth_peak(a: np.ndarray, b: np.ndarray) -> float:
     """The most common azimuth difference of matched bearings: the rotation, give or
     take the parallax (a histogram of 5-degree bins, smoothed over three)."""
@@ -223,8 +264,7 @@ def fit_two_view(
     cos_d, sin_d = np.cos(directions)[:, None], np.sin(directions)[:, None]
     best = (-1, 0.0, 0.0)
     for rotation in rotations.tolist():
-        normal = np.cross(_turned(b, rotation), a)
-        counts = (np.abs(cos_d * normal[:, 0] + sin_d * normal[:, 1]) < tolerance).sum(axis=1)
+        counts = _direction_counts(a, b, rotation, cos_d, sin_d, tolerance)
         k = int(np.argmax(counts))
         if counts[k] > best[0]:
             best = (int(counts[k]), rotation, float(directions[k]))
@@ -252,9 +292,101 @@ def fit_two_view(
     count = int(inliers.sum())
     if count < needed:
         return None
-    return TwoViewFit(
+    fit = TwoViewFit(
         rotation_rad=wrap_angle_rad(rotation),
         direction_rad=float(np.mod(direction, math.pi)),
         inliers=count,
         matches=len(a),
+    )
+    if not config.tilt:
+        return fit
+    # The second start: the azimuth peak, with its best direction of motion.
+    peak = centres[0]
+    peak_direction = float(
+        directions[int(np.argmax(_direction_counts(a, b, peak, cos_d, sin_d, tolerance)))]
+    )
+    pixel_rad = max(query.pixel_rad, known.pixel_rad)
+    return _tilted(a, b, fit, [(rotation, direction), (peak, peak_direction)], config, pixel_rad)
+
+
+def _tilt_matrix(params: np.ndarray) -> np.ndarray:
+    """The rotation of :func:`_tilted`'s ``params``: heading change after relative
+    roll (about x) and pitch (about y)."""
+    rotation, roll, pitch = params[:3]
+    cz, sz = math.cos(rotation), math.sin(rotation)
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    turn = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    about_x = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    about_y = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    matrix: np.ndarray = turn @ about_x @ about_y
+    return matrix
+
+
+def _tilted_residuals(a: np.ndarray, b: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """``a . (t x R b)`` for the 3D rotation and the unit ``t`` (azimuth, elevation)
+    of ``params`` = (rotation, roll, pitch, azimuth, elevation)."""
+    azimuth, elevation = params[3], params[4]
+    t = np.array(
+        [
+            math.cos(elevation) * math.cos(azimuth),
+            math.cos(elevation) * math.sin(azimuth),
+            math.sin(elevation),
+        ]
+    )
+    normal: np.ndarray = np.cross(b @ _tilt_matrix(params).T, a) @ t
+    return normal
+
+
+def _refine_tilted(
+    a: np.ndarray, b: np.ndarray, start: np.ndarray, config: TwoViewConfig, pixel_rad: float
+) -> tuple[np.ndarray, int] | None:
+    """Gauss-Newton from ``start`` on the inliers of ever tighter tolerances; the
+    parameters and their inliers at the last tolerance, or ``None`` if too few."""
+    params = start.copy()
+    step = 1e-6
+    for tolerance_px in config.tilt_tolerances_px:
+        tolerance = tolerance_px * pixel_rad
+        for _ in range(config.tilt_iterations):
+            residuals = _tilted_residuals(a, b, params)
+            inliers = np.abs(residuals) < tolerance
+            if inliers.sum() < config.min_inliers:
+                return None
+            a_in, b_in, r = a[inliers], b[inliers], residuals[inliers]
+            jacobian = np.stack(
+                [(_tilted_residuals(a_in, b_in, params + e) - r) / step for e in np.eye(5) * step],
+                axis=1,
+            )
+            params = params + np.linalg.lstsq(jacobian, -r, rcond=None)[0]
+    final = config.tilt_tolerances_px[-1] * pixel_rad
+    return params, int((np.abs(_tilted_residuals(a, b, params)) < final).sum())
+
+
+def _tilted(
+    a: np.ndarray,
+    b: np.ndarray,
+    fit: TwoViewFit,
+    starts: list[tuple[float, float]],
+    config: TwoViewConfig,
+    pixel_rad: float,
+) -> TwoViewFit:
+    """``fit`` with the rotation and direction of the tilted refinement from the best
+    of ``starts`` (rotation, direction); the planar fit if none converges to a
+    plausible tilt with enough more inliers."""
+    best: tuple[np.ndarray, int] | None = None
+    for rotation, direction in starts:
+        start = np.array([rotation, 0.0, 0.0, direction, 0.0])
+        got = _refine_tilted(a, b, start, config, pixel_rad)
+        if got is None or math.hypot(got[0][1], got[0][2]) > config.max_tilt_rad:
+            continue
+        if best is None or got[1] > best[1]:
+            best = got
+    if best is None or best[1] < config.tilt_min_gain * fit.inliers:
+        return fit
+    params = best[0]
+    return replace(
+        fit,
+        rotation_rad=wrap_angle_rad(float(params[0])),
+        direction_rad=float(np.mod(params[3], math.pi)),
+        tilt_rad=float(math.hypot(params[1], params[2])),
     )
