@@ -82,6 +82,16 @@ def run_match(args: argparse.Namespace, out: TextIO) -> int:
     return 0
 
 
+def _rotation(visit: dict[str, Any]) -> str:
+    """A known visit's turn from its heading to that of the junction's stored sweep,
+    as the decision reports it (two-view when there is a fit, else the paper's)."""
+    if not visit["known"]:
+        return "-"
+    two_view = visit["rotation_two_view_rad"]
+    rotation = two_view if two_view is not None else visit["rotation_rad"]
+    return "-" if rotation is None else f"{rotation:+.4f}"
+
+
 def run_map(args: argparse.Namespace, out: TextIO) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     sets = _load(args)
@@ -100,12 +110,12 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
         out.write(dumps_document(doc))
         return 0
     width = max([len(d) for d in args.dirs] + [3])
-    out.write(f"{'set':<{width}}  node  known  similarity  margin\n")
+    out.write(f"{'set':<{width}}  node  known  similarity  margin  rotation\n")
     for v in doc["visits"]:
         margin = "-" if v["margin"] is None else f"{v['margin']:.3f}"
         out.write(
             f"{v['set']:<{width}}  {v['node']:4d}  {'yes' if v['known'] else 'no ':>5}"
-            f"  {v['similarity']:10.3f}  {margin:>6}\n"
+            f"  {v['similarity']:10.3f}  {margin:>6}  {_rotation(v):>8}\n"
         )
     edges = ", ".join(f"{e['u']}-{e['v']} ({e['label']})" for e in doc["edges"])
     out.write(f"{len(doc['nodes'])} nodes; edges: {edges or 'none'}\n")

@@ -508,13 +508,20 @@ def test_map_table(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     status, out, err = run(["map", *dirs], capfd)
     assert status == 0, err
     lines = out.splitlines()
-    assert lines[0].split() == ["set", "node", "known", "similarity", "margin"]
+    assert lines[0].split() == ["set", "node", "known", "similarity", "margin", "rotation"]
     rows = [line.split() for line in lines[1:4]]
     assert [(row[0], row[1], row[2]) for row in rows] == [
         (dirs[0], "0", "no"),
         (dirs[1], "1", "no"),
         (dirs[2], "0", "yes"),
     ]
+    # The rotation of the known visit, as --json reports it; none for new junctions.
+    assert [row[5] for row in rows[:2]] == ["-", "-"]
+    doc = json.loads(run(["map", *dirs, "--json"], capfd)[1])
+    known = doc["visits"][2]
+    rotation = known["rotation_two_view_rad"]
+    rotation = known["rotation_rad"] if rotation is None else rotation
+    assert float(rows[2][5]) == pytest.approx(rotation, abs=5e-5)
     assert lines[4:] == ["2 nodes; edges: 0-1 (1)"]
 
 
