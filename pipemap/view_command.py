@@ -11,8 +11,8 @@ for it. Its import takes 0.25-0.35 s. Where the system can fork, a child process
 reads the log, hands it over as a :class:`replay.PackedLog` (in an unnamed file, so
 it need not wait for this process) and replays it, on the other core, while this
 process imports rerun; this one then logs the streams, and the child's decisions
-last. The recording is the same either
-way. (Importing rerun in a thread saved nothing: the import holds the GIL.)
+last. The recording is the same either way. (Importing rerun in a thread saved
+nothing: the import holds the GIL.)
 """
 
 from __future__ import annotations
