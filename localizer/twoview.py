@@ -41,6 +41,7 @@ keypoints of two different junctions do not fit one motion. Keypoints are ORB's
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import cv2
@@ -270,24 +271,18 @@ def fit_two_view(
             best = (int(counts[k]), rotation, float(directions[k]))
     _, rotation, direction = best
     # Fine: Gauss-Newton on the inliers, which are chosen again each round.
-    inliers = np.zeros(len(a), dtype=bool)
-    for _ in range(config.refine_iterations):
-        residuals = _residuals(a, b, rotation, direction)
-        inliers = np.abs(residuals) < tolerance
-        if inliers.sum() < needed:
-            return None
-        r = residuals[inliers]
-        step = 1e-6
-        jacobian = np.stack(
-            [
-                (_residuals(a[inliers], b[inliers], rotation + step, direction) - r) / step,
-                (_residuals(a[inliers], b[inliers], rotation, direction + step) - r) / step,
-            ],
-            axis=1,
-        )
-        delta = np.linalg.lstsq(jacobian, -r, rcond=None)[0]
-        rotation += float(delta[0])
-        direction += float(delta[1])
+    refined = _gauss_newton(
+        _planar_residuals,
+        a,
+        b,
+        np.array([rotation, direction]),
+        tolerance,
+        config.refine_iterations,
+        needed,
+    )
+    if refined is None:
+        return None
+    rotation, direction = float(refined[0]), float(refined[1])
     inliers = np.abs(_residuals(a, b, rotation, direction)) < tolerance
     count = int(inliers.sum())
     if count < needed:
@@ -338,26 +333,51 @@ def _tilted_residuals(a: np.ndarray, b: np.ndarray, params: np.ndarray) -> np.nd
     return normal
 
 
+def _planar_residuals(a: np.ndarray, b: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """:func:`_residuals` for ``params`` = (rotation, direction)."""
+    return _residuals(a, b, float(params[0]), float(params[1]))
+
+
+def _gauss_newton(
+    residuals: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
+    a: np.ndarray,
+    b: np.ndarray,
+    params: np.ndarray,
+    tolerance: float,
+    iterations: int,
+    needed: float,
+) -> np.ndarray | None:
+    """``iterations`` Gauss-Newton steps (forward-difference Jacobian) on the pairs
+    whose residual is within ``tolerance``, chosen again each step; ``None`` as soon
+    as fewer than ``needed`` are."""
+    step = 1e-6
+    for _ in range(iterations):
+        all_residuals = residuals(a, b, params)
+        inliers = np.abs(all_residuals) < tolerance
+        if inliers.sum() < needed:
+            return None
+        a_in, b_in, r = a[inliers], b[inliers], all_residuals[inliers]
+        jacobian = np.stack(
+            [(residuals(a_in, b_in, params + e) - r) / step for e in np.eye(len(params)) * step],
+            axis=1,
+        )
+        params = params + np.linalg.lstsq(jacobian, -r, rcond=None)[0]
+    return params
+
+
 def _refine_tilted(
     a: np.ndarray, b: np.ndarray, start: np.ndarray, config: TwoViewConfig, pixel_rad: float
 ) -> tuple[np.ndarray, int] | None:
     """Gauss-Newton from ``start`` on the inliers of ever tighter tolerances; the
     parameters and their inliers at the last tolerance, or ``None`` if too few."""
-    params = start.copy()
-    step = 1e-6
+    params = start
     for tolerance_px in config.tilt_tolerances_px:
         tolerance = tolerance_px * pixel_rad
-        for _ in range(config.tilt_iterations):
-            residuals = _tilted_residuals(a, b, params)
-            inliers = np.abs(residuals) < tolerance
-            if inliers.sum() < config.min_inliers:
-                return None
-            a_in, b_in, r = a[inliers], b[inliers], residuals[inliers]
-            jacobian = np.stack(
-                [(_tilted_residuals(a_in, b_in, params + e) - r) / step for e in np.eye(5) * step],
-                axis=1,
-            )
-            params = params + np.linalg.lstsq(jacobian, -r, rcond=None)[0]
+        iterations, needed = config.tilt_iterations, config.min_inliers
+        refined = _gauss_newton(_tilted_residuals, a, b, params, tolerance, iterations, needed)
+        if refined is None:
+            return None
+        params = refined
     final = config.tilt_tolerances_px[-1] * pixel_rad
     return params, int((np.abs(_tilted_residuals(a, b, params)) < final).sum())
 
