@@ -44,7 +44,8 @@ cv2.setNumThreads(1)
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from localizer import (  # noqa: E402
+from pipemap.cli.folders import load_image_set, read_info  # noqa: E402
+from pipemap.localizer import (  # noqa: E402
     DEFAULT_THRESHOLD,
     FastConfig,
     FastMatcher,
@@ -54,7 +55,6 @@ from localizer import (  # noqa: E402
     reference_match,
     wrap_angle_rad,
 )
-from pipemap.folders import load_image_set, read_info  # noqa: E402
 
 DEFAULT_SETS = ROOT.parent / "shared" / "paper_imagesets"
 REFERENCE_VALUES = ROOT / "tests" / "localizer" / "data" / "paper_reference.json"

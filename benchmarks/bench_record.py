@@ -21,16 +21,16 @@ import time
 from pathlib import Path
 
 from pipemap import __version__
-from recorder import RecordSettings, record_run
-from recorder.session import _gray_set
-from sim.controller import ExplorerConfig, autonomous_run
-from sim.network import build_network
-from sim.stream import SweepEnd
-from sim.world import CameraSpec, World
+from pipemap.recorder import RecordSettings, record_run
+from pipemap.recorder.session import _gray_set
+from pipemap.sim.controller import ExplorerConfig, autonomous_run
+from pipemap.sim.network import build_network
+from pipemap.sim.stream import SweepEnd
+from pipemap.sim.world import CameraSpec, World
 
 
 def _run_alone(resolution: int, with_localizer: bool) -> float:
-    from localizer import Localizer
+    from pipemap.localizer import Localizer
 
     network = build_network("paper", seed=0)
     camera = CameraSpec(resolution_px=resolution)

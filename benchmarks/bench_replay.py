@@ -22,9 +22,9 @@ import time
 from pathlib import Path
 
 from pipemap import __version__
-from recorder import RecordSettings, record_run
-from replay import FileSource, replay
-from sim.network import build_network
+from pipemap.recorder import RecordSettings, record_run
+from pipemap.replay import FileSource, replay
+from pipemap.sim.network import build_network
 
 RECORDINGS = Path(__file__).resolve().parents[1] / "recordings"
 

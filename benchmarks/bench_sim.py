@@ -28,8 +28,8 @@ import cv2  # noqa: E402
 cv2.setNumThreads(1)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sim import CameraSpec, Condition, Episode, SimConfig, World, build_network  # noqa: E402
-from sim.controller import autonomous_run  # noqa: E402
+from pipemap.sim import CameraSpec, Condition, Episode, SimConfig, World, build_network  # noqa: E402
+from pipemap.sim.controller import autonomous_run  # noqa: E402
 
 
 def main() -> int:

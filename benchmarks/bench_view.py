@@ -28,8 +28,8 @@ from pathlib import Path
 
 import rerun  # noqa: F401  (imported up front: the in-process times leave it out)
 
-from replay import FileSource, replay
-from replay.view import save_view
+from pipemap.replay import FileSource, replay
+from pipemap.replay.view import save_view
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
-from pipemap.folders import load_image_sets, read_info
-from pipemap.parser import ROBUST_HIGHPASS, ROBUST_ZOOMS
+from pipemap.cli.folders import load_image_sets, read_info
+from pipemap.cli.parser import ROBUST_HIGHPASS, ROBUST_ZOOMS
+from pipemap.localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
 
 CONFIGS = {
     "paper": FastConfig(),

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import sys
 
-from sim.controller import autonomous_run
-from sim.network import build_network
-from sim.world import CameraSpec, World
+from pipemap.sim.controller import autonomous_run
+from pipemap.sim.network import build_network
+from pipemap.sim.world import CameraSpec, World
 
 
 def main(spec: str, first: int, stop: int) -> None:

@@ -17,7 +17,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sim import CameraSpec, World, build_network  # noqa: E402
+from pipemap.sim import CameraSpec, World, build_network  # noqa: E402
 
 ROWS = [
     ("paper", "S", "entry"),

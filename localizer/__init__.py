@@ -6,9 +6,15 @@ no clock. Its inputs and outputs are the types exported here.
 
 from __future__ import annotations
 
-from localizer.fastmatch import FastConfig, FastMatcher, PreparedSet, pairwise_matches, prepare
-from localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
-from localizer.localizer import (
+from pipemap.localizer.fastmatch import (
+    FastConfig,
+    FastMatcher,
+    PreparedSet,
+    pairwise_matches,
+    prepare,
+)
+from pipemap.localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
+from pipemap.localizer.localizer import (
     DEFAULT_THRESHOLD,
     PAPER,
     Decision,
@@ -21,8 +27,8 @@ from localizer.localizer import (
     best_candidate,
     probe_plan,
 )
-from localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
-from localizer.similarity import (
+from pipemap.localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
+from pipemap.localizer.similarity import (
     PairPeak,
     SetMatch,
     best_offset,
@@ -33,8 +39,14 @@ from localizer.similarity import (
     relative_rotation_rad,
     wrap_angle_rad,
 )
-from localizer.topomap import MapEdge, TopoMap
-from localizer.twoview import SweepFeatures, TwoViewConfig, TwoViewFit, fit_two_view, sweep_features
+from pipemap.localizer.topomap import MapEdge, TopoMap
+from pipemap.localizer.twoview import (
+    SweepFeatures,
+    TwoViewConfig,
+    TwoViewFit,
+    fit_two_view,
+    sweep_features,
+)
 
 __all__ = [
     "DEFAULT_FOV_RAD",

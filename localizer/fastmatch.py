@@ -38,9 +38,9 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from localizer.imageset import ImageSet
-from localizer.similarity import SetMatch, best_offset, sums_from_integral, wrap_angle_rad
 from pipemap.errors import LocalizerError
+from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.similarity import SetMatch, best_offset, sums_from_integral, wrap_angle_rad
 
 __all__ = ["FastConfig", "FastMatcher", "FineSpectra", "PreparedSet", "pairwise_matches", "prepare"]
 

@@ -19,12 +19,18 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
-from localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
-from localizer.imageset import ImageSet
-from localizer.similarity import SetMatch
-from localizer.topomap import TopoMap
-from localizer.twoview import SweepFeatures, TwoViewConfig, TwoViewFit, fit_two_view, sweep_features
 from pipemap.errors import LocalizerError
+from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
+from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.similarity import SetMatch
+from pipemap.localizer.topomap import TopoMap
+from pipemap.localizer.twoview import (
+    SweepFeatures,
+    TwoViewConfig,
+    TwoViewFit,
+    fit_two_view,
+    sweep_features,
+)
 
 __all__ = [
     "DEFAULT_THRESHOLD",

@@ -12,8 +12,8 @@ import json
 from collections.abc import Sequence
 from typing import Any
 
-from localizer.localizer import Decision
-from localizer.topomap import TopoMap
+from pipemap.localizer.localizer import Decision
+from pipemap.localizer.topomap import TopoMap
 
 __all__ = ["FLOAT_DECIMALS", "decision_record", "dumps_document", "map_document"]
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from localizer.imageset import ImageSet
+from pipemap.localizer.imageset import ImageSet
 
 __all__ = [
     "PairPeak",

@@ -47,8 +47,8 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from localizer.imageset import ImageSet
-from localizer.similarity import wrap_angle_rad
+from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.similarity import wrap_angle_rad
 
 __all__ = ["SweepFeatures", "TwoViewConfig", "TwoViewFit", "fit_two_view", "sweep_features"]
 

@@ -1,8 +1,10 @@
 """pipemap: topological localization and mapping of robots in buried pipe networks.
 
-This package is the application shell: the error root shared by every layer and
-the ``pipemap`` command line. The layers themselves are the top-level packages
-``sim``, ``recorder``, ``replay`` and ``localizer``.
+Everything installs under this one name: the layers ``pipemap.sim`` (the world and
+the robot), ``pipemap.recorder`` (a run to an MCAP log), ``pipemap.replay`` (a log
+back through the localizer, scored) and ``pipemap.localizer`` (the algorithm, pure),
+the command line ``pipemap.cli``, and ``pipemap.errors``, the error root every layer
+shares. Importing this package loads none of them.
 """
 
 from __future__ import annotations

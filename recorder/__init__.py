@@ -10,21 +10,21 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from recorder.reader import Integrity, LogChannel, LogContents, LogMessage, read_log
-from recorder.topics import FORMAT_VERSION, METADATA_RESULT, METADATA_RUN, TOPICS, Topic
+from pipemap.recorder.reader import Integrity, LogChannel, LogContents, LogMessage, read_log
+from pipemap.recorder.topics import FORMAT_VERSION, METADATA_RESULT, METADATA_RUN, TOPICS, Topic
 
 if TYPE_CHECKING:
-    from recorder.session import Progress, RecordResult, RecordSettings, record_run
-    from recorder.writer import LogWriter
+    from pipemap.recorder.session import Progress, RecordResult, RecordSettings, record_run
+    from pipemap.recorder.writer import LogWriter
 
 #: Loaded on first use (PEP 562): recording pulls in the simulator, which a command
 #: that only reads logs should not pay for (0.1 s).
 _LAZY = {
-    "Progress": "recorder.session",
-    "RecordResult": "recorder.session",
-    "RecordSettings": "recorder.session",
-    "record_run": "recorder.session",
-    "LogWriter": "recorder.writer",
+    "Progress": "pipemap.recorder.session",
+    "RecordResult": "pipemap.recorder.session",
+    "RecordSettings": "pipemap.recorder.session",
+    "record_run": "pipemap.recorder.session",
+    "LogWriter": "pipemap.recorder.writer",
 }
 
 

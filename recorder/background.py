@@ -30,8 +30,8 @@ from types import TracebackType
 from typing import Any, BinaryIO, cast
 
 from pipemap.errors import InputError
-from recorder.convert import LogRecord, RecordConverter
-from recorder.writer import LogWriter
+from pipemap.recorder.convert import LogRecord, RecordConverter
+from pipemap.recorder.writer import LogWriter
 
 __all__ = ["BackgroundWriter", "writer_main"]
 
@@ -126,7 +126,7 @@ class BackgroundWriter:
             [
                 sys.executable,
                 "-m",
-                "recorder.writer_process",
+                "pipemap.recorder.writer_process",
                 str(records_read),
                 str(replies_write),
                 str(path),

@@ -11,12 +11,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from recorder import messages, schemas
-from recorder.topics import Topic
-from recorder.writer import LogWriter
-from sim.episode import Pose
-from sim.robot import EncoderReading, ImuReading, RangeReading, RobotSpec
-from sim.stream import (
+from pipemap.recorder import messages, schemas
+from pipemap.recorder.topics import Topic
+from pipemap.recorder.writer import LogWriter
+from pipemap.sim.episode import Pose
+from pipemap.sim.robot import EncoderReading, ImuReading, RangeReading, RobotSpec
+from pipemap.sim.stream import (
     ControlStep,
     NodeArrival,
     NodeDeparture,

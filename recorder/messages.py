@@ -23,11 +23,11 @@ from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
-from recorder import schemas
+from pipemap.recorder import schemas
 
 if TYPE_CHECKING:
-    from localizer import Decision as LocalizerDecision
-    from sim.network import Network
+    from pipemap.localizer import Decision as LocalizerDecision
+    from pipemap.sim.network import Network
 
 __all__ = [
     "WORLD_FRAME",

@@ -32,7 +32,7 @@ from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, Metad
 from mcap.stream_reader import breakup_chunk
 
 from pipemap.errors import LogFormatError
-from recorder.topics import LIBRARY, METADATA_RUN
+from pipemap.recorder.topics import LIBRARY, METADATA_RUN
 
 __all__ = ["Integrity", "LogChannel", "LogContents", "LogMessage", "gc_paused", "read_log"]
 

@@ -31,17 +31,17 @@ from typing import Any
 import cv2
 import numpy as np
 
-from localizer import DEFAULT_THRESHOLD, ImageSet, Localizer, LocalizerConfig, ProbeRequest
 from pipemap.errors import InputError
-from recorder import messages
-from recorder.background import BackgroundWriter
-from recorder.convert import ReadyMessage, SweepDone
-from recorder.topics import FORMAT_VERSION, Topic
-from sim.controller import ExplorerConfig, RunStatus, autonomous_run
-from sim.episode import Condition, Episode, SimConfig, Sweep, Visit
-from sim.network import Network
-from sim.robot import PlanarPose, RobotSpec
-from sim.stream import (
+from pipemap.localizer import DEFAULT_THRESHOLD, ImageSet, Localizer, LocalizerConfig, ProbeRequest
+from pipemap.recorder import messages
+from pipemap.recorder.background import BackgroundWriter
+from pipemap.recorder.convert import ReadyMessage, SweepDone
+from pipemap.recorder.topics import FORMAT_VERSION, Topic
+from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
+from pipemap.sim.episode import Condition, Episode, SimConfig, Sweep, Visit
+from pipemap.sim.network import Network
+from pipemap.sim.robot import PlanarPose, RobotSpec
+from pipemap.sim.stream import (
     NodeArrival,
     NodeDeparture,
     SimRecord,
@@ -50,7 +50,7 @@ from sim.stream import (
     SweepStart,
     TruePose,
 )
-from sim.world import CameraSpec, World
+from pipemap.sim.world import CameraSpec, World
 
 __all__ = ["Progress", "RecordResult", "RecordSettings", "record_run"]
 

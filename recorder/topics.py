@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from recorder import schemas
+from pipemap.recorder import schemas
 
 __all__ = [
     "FORMAT_VERSION",

@@ -22,7 +22,7 @@ from mcap.writer import CompressionType, IndexType
 from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from recorder.topics import LIBRARY, METADATA_RESULT, METADATA_RUN, PROFILE, TOPICS
+from pipemap.recorder.topics import LIBRARY, METADATA_RESULT, METADATA_RUN, PROFILE, TOPICS
 
 __all__ = ["DEFAULT_CHUNK_BYTES", "LogWriter"]
 

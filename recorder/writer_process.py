@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 import sys
 
-from recorder.background import writer_main
+from pipemap.recorder.background import writer_main
 
 if __name__ == "__main__":
     records_fd, replies_fd, path, mode = sys.argv[1:5]

@@ -7,8 +7,8 @@ a replay with the log's ground truth.
 
 from __future__ import annotations
 
-from replay.replayer import LoggedSweep, ReplayResult, VisitDecision, replay, sweeps_of
-from replay.score import (
+from pipemap.replay.replayer import LoggedSweep, ReplayResult, VisitDecision, replay, sweeps_of
+from pipemap.replay.score import (
     PairStatistics,
     ScoreReport,
     VisitScore,
@@ -17,7 +17,7 @@ from replay.score import (
     score_replay,
     true_sweeps,
 )
-from replay.source import FileSource, MemorySource, MessageSource, PackedLog, ordered
+from pipemap.replay.source import FileSource, MemorySource, MessageSource, PackedLog, ordered
 
 __all__ = [
     "FileSource",

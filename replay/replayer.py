@@ -19,7 +19,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from localizer import (
+from pipemap.errors import LogFormatError, PipemapError
+from pipemap.localizer import (
     Decision,
     ImageSet,
     Localizer,
@@ -28,11 +29,10 @@ from localizer import (
     TopoMap,
     map_document,
 )
-from pipemap.errors import LogFormatError, PipemapError
-from recorder import Integrity, LogMessage, Topic
-from recorder.messages import decode_png
-from recorder.schemas import CompressedImage, SweepCommand
-from replay.source import MessageSource
+from pipemap.recorder import Integrity, LogMessage, Topic
+from pipemap.recorder.messages import decode_png
+from pipemap.recorder.schemas import CompressedImage, SweepCommand
+from pipemap.replay.source import MessageSource
 
 __all__ = ["LoggedSweep", "ReplayResult", "VisitDecision", "replay", "sweeps_of", "visit_label"]
 

@@ -24,12 +24,12 @@ import statistics
 from dataclasses import dataclass
 from typing import Any
 
-from localizer import FastConfig, LocalizerConfig, TopoMap, pairwise_matches, wrap_angle_rad
 from pipemap.errors import LogFormatError
-from recorder import Topic
-from recorder.schemas import TrueSweep
-from replay.replayer import ReplayResult, replay, visit_label
-from replay.source import MessageSource
+from pipemap.localizer import FastConfig, LocalizerConfig, TopoMap, pairwise_matches, wrap_angle_rad
+from pipemap.recorder import Topic
+from pipemap.recorder.schemas import TrueSweep
+from pipemap.replay.replayer import ReplayResult, replay, visit_label
+from pipemap.replay.source import MessageSource
 
 __all__ = [
     "PairStatistics",

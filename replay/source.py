@@ -16,9 +16,9 @@ from typing import Protocol
 import numpy as np
 
 from pipemap.errors import LogFormatError
-from recorder import METADATA_RUN, Integrity, LogMessage, Topic, read_log
-from recorder.reader import gc_paused
-from recorder.topics import ROBOT_PREFIX
+from pipemap.recorder import METADATA_RUN, Integrity, LogMessage, Topic, read_log
+from pipemap.recorder.reader import gc_paused
+from pipemap.recorder.topics import ROBOT_PREFIX
 
 __all__ = [
     "FileSource",

@@ -26,13 +26,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from localizer import TopoMap
 from pipemap.errors import InputError, ViewerError
-from recorder.topics import ROBOT_PREFIX
-from replay.replayer import ReplayResult, VisitDecision, visit_label
-from replay.source import MessageSource
-from replay.view_blueprint import view_blueprint
-from replay.view_topics import RobotGeometry, log_robot, log_truth, set_time
+from pipemap.localizer import TopoMap
+from pipemap.recorder.topics import ROBOT_PREFIX
+from pipemap.replay.replayer import ReplayResult, VisitDecision, visit_label
+from pipemap.replay.source import MessageSource
+from pipemap.replay.view_blueprint import view_blueprint
+from pipemap.replay.view_topics import RobotGeometry, log_robot, log_truth, set_time
 
 if TYPE_CHECKING:
     import rerun as rr

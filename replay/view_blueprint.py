@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from replay.view_topics import TIMELINE
+from pipemap.replay.view_topics import TIMELINE
 
 if TYPE_CHECKING:
     import rerun.blueprint as rrb

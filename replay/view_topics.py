@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from recorder import LogMessage, Topic
-from recorder.schemas import (
+from pipemap.recorder import LogMessage, Topic
+from pipemap.recorder.schemas import (
     CompressedImage,
     ControllerState,
     FrameTransform,
@@ -31,7 +31,7 @@ from recorder.schemas import (
     SweepCommand,
     WheelEncoders,
 )
-from replay.wire import Columns, decode_columns, spec_of
+from pipemap.replay.wire import Columns, decode_columns, spec_of
 
 if TYPE_CHECKING:
     import rerun as rr

@@ -6,11 +6,11 @@ for rendering and range rays; everything random draws from the run's seed.
 
 from __future__ import annotations
 
-from sim.episode import Condition, Episode, Pose, SimConfig, Sweep, Visit
-from sim.network import Network, Node, NodeKind, Pipe, build_network
-from sim.plan import Tour, right_hand_tour, tour_edges
-from sim.robot import PlanarPose, Robot, RobotSpec
-from sim.stream import (
+from pipemap.sim.episode import Condition, Episode, Pose, SimConfig, Sweep, Visit
+from pipemap.sim.network import Network, Node, NodeKind, Pipe, build_network
+from pipemap.sim.plan import Tour, right_hand_tour, tour_edges
+from pipemap.sim.robot import PlanarPose, Robot, RobotSpec
+from pipemap.sim.stream import (
     ControlStep,
     NodeArrival,
     NodeDeparture,
@@ -22,7 +22,7 @@ from sim.stream import (
     SweepStart,
     TruePose,
 )
-from sim.world import CameraSpec, World
+from pipemap.sim.world import CameraSpec, World
 
 __all__ = [
     "CameraSpec",

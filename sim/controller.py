@@ -31,9 +31,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sim.episode import Pose, Sweep, sweep_start_angle
-from sim.robot import NS_PER_S, EncoderReading, ImuReading, PlanarPose, RangeReading, Reading, Robot
-from sim.stream import (
+from pipemap.sim.episode import Pose, Sweep, sweep_start_angle
+from pipemap.sim.robot import (
+    NS_PER_S,
+    EncoderReading,
+    ImuReading,
+    PlanarPose,
+    RangeReading,
+    Reading,
+    Robot,
+)
+from pipemap.sim.stream import (
     ControlStep,
     NodeArrival,
     NodeDeparture,
@@ -44,7 +52,7 @@ from sim.stream import (
     SweepStart,
     TruePose,
 )
-from sim.world import CameraSpec, World
+from pipemap.sim.world import CameraSpec, World
 
 __all__ = ["ExplorationResult", "Explorer", "ExplorerConfig", "RunStatus", "autonomous_run"]
 

@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pipemap.errors import SimError
-from sim.network import Network
-from sim.plan import right_hand_tour
-from sim.world import CameraSpec, World
+from pipemap.sim.network import Network
+from pipemap.sim.plan import right_hand_tour
+from pipemap.sim.world import CameraSpec, World
 
 __all__ = ["Condition", "Episode", "Pose", "SimConfig", "Sweep", "Visit", "sweep_start_angle"]
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from pipemap.errors import SimError
-from sim.network import Network, wrap_rad
+from pipemap.sim.network import Network, wrap_rad
 
 __all__ = ["Visit", "TourEnd", "Tour", "right_hand_tour", "right_most_exit", "tour_edges"]
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipemap.errors import SimError
-from sim.world import World
+from pipemap.sim.world import World
 
 __all__ = ["EncoderReading", "ImuReading", "PlanarPose", "RangeReading", "Robot", "RobotSpec"]
 

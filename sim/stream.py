@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.episode import Sweep
-from sim.robot import EncoderReading, ImuReading, PlanarPose, RangeReading
+from pipemap.sim.episode import Sweep
+from pipemap.sim.robot import EncoderReading, ImuReading, PlanarPose, RangeReading
 
 __all__ = [
     "ControlStep",

@@ -33,9 +33,9 @@ import cv2
 import numpy as np
 
 from pipemap.errors import SimError
-from sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
-from sim.network import Network
-from sim.textures import node_texture, pipe_texture
+from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
+from pipemap.sim.network import Network
+from pipemap.sim.textures import node_texture, pipe_texture
 
 __all__ = ["CameraSpec", "World"]
 

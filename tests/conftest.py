@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from localizer import ImageSet
-from pipemap.folders import load_image_set, read_info
+from pipemap.cli.folders import load_image_set, read_info
+from pipemap.localizer import ImageSet
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER_SETS = Path(

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from recorder import LogWriter, Topic, schemas
-from recorder.messages import image_message, pose_message
+from pipemap.recorder import LogWriter, Topic, schemas
+from pipemap.recorder.messages import image_message, pose_message
 
 #: Settings of the small recorded run the end-to-end tests share.
 SMALL_RUN = ["--network", "paper", "--resolution", "32", "--seed", "3"]

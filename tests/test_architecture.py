@@ -1,40 +1,63 @@
 """The layering of STYLE.md, checked on the source with ``ast``.
 
-The data travels one way, ``sim -> recorder -> log -> replay -> localizer -> map``,
-and only the ``pipemap`` application shell may depend on everything. Every ``.py``
-file of the five top-level packages is parsed; every import it makes (at module
-level or inside a function, absolute or relative, and ``importlib.import_module`` /
-``__import__`` of a literal name) is checked against the arrows allowed below.
-The localizer is held to more: only the standard library, numpy, scipy, OpenCV and
-networkx, and nothing that touches files, the wall clock or the logging set-up.
+Installed, everything lives under ``pipemap``; in the repository the layers keep
+their top-level folders (``sim/``, ``recorder/``, ``replay/``, ``localizer/``), mapped
+to ``pipemap.sim`` and so on by ``pyproject.toml``. The data travels one way,
+``sim -> recorder -> log -> replay -> localizer -> map``; ``pipemap.errors`` sits
+below every layer and imports nothing of pipemap; only the command line,
+``pipemap.cli``, may depend on everything. Every ``.py`` file is parsed; every import
+it makes (at module level or inside a function, absolute or relative, and
+``importlib.import_module`` / ``__import__`` of a literal name) is checked against the
+arrows allowed below. The localizer is held to more: only the standard library,
+numpy, scipy, OpenCV and networkx, and nothing that touches files, the wall clock or
+the logging set-up.
 """
 
 from __future__ import annotations
 
 import ast
 import sys
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("localizer", "sim", "recorder", "replay", "pipemap")
 
-#: Project modules each package may import (a name and everything below it).
-#: ``pipemap.errors`` is the one error root every layer shares.
-ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
-    "localizer": ("localizer", "pipemap.errors"),
-    "sim": ("sim", "pipemap.errors"),
-    "recorder": ("recorder", "sim", "localizer", "pipemap.errors"),
-    "replay": ("replay", "recorder", "localizer", "pipemap.errors"),
-    "pipemap": PACKAGES,
+#: Repository folder of each installed package (``[tool.setuptools.package-dir]``).
+FOLDERS: dict[str, str] = {
+    "pipemap": "pipemap",
+    "pipemap.sim": "sim",
+    "pipemap.recorder": "recorder",
+    "pipemap.replay": "replay",
+    "pipemap.localizer": "localizer",
 }
 
-#: Files every layer loads through ``pipemap.errors`` (importing it runs
-#: ``pipemap/__init__.py`` too): they must not pull the application shell, or any
-#: other layer, in behind the layers' backs. Standard library only.
-SHARED_FILES = ("pipemap/__init__.py", "pipemap/errors.py")
+#: Each area of the code, and the project modules it may import (a name and
+#: everything below it). The most specific area of a module applies.
+ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
+    "pipemap.errors": (),
+    "pipemap": (),  # the root __init__: nothing of the project, so importing it is free
+    "pipemap.localizer": ("pipemap.localizer", "pipemap.errors"),
+    "pipemap.sim": ("pipemap.sim", "pipemap.errors"),
+    "pipemap.recorder": (
+        "pipemap.recorder",
+        "pipemap.sim",
+        "pipemap.localizer",
+        "pipemap.errors",
+    ),
+    "pipemap.replay": ("pipemap.replay", "pipemap.recorder", "pipemap.localizer", "pipemap.errors"),
+    "pipemap.cli": ("pipemap",),
+    "pipemap.__main__": ("pipemap.cli",),  # ``python -m pipemap``
+}
+
+#: Areas loaded by every layer: standard library only.
+STDLIB_ONLY = ("pipemap.errors", "pipemap")
+
+#: The names the layers had before they moved under ``pipemap``: importing one is
+#: always wrong (installed, they do not exist).
+OLD_TOP_LEVEL = ("sim", "recorder", "replay", "localizer")
 
 #: Third-party packages the localizer may use besides the standard library.
 LOCALIZER_THIRD_PARTY = ("numpy", "scipy", "cv2", "networkx")
@@ -80,10 +103,23 @@ class Import:
         return self.target.split(".")[0]
 
 
+def module_of(relpath: str) -> str:
+    """The installed dotted name of a repository file, e.g. ``sim/world.py`` ->
+    ``pipemap.sim.world``; a package's ``__init__.py`` gives the package."""
+    parts = relpath.removesuffix(".py").split("/")
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    for package, folder in sorted(FOLDERS.items(), key=lambda kv: -len(kv[1])):
+        if parts[0] == folder:
+            return ".".join([package, *parts[1:]])
+    raise ValueError(f"{relpath} is in no package folder")
+
+
 def _package_of(relpath: str) -> list[str]:
     """The dotted package a file's relative imports start from, as parts."""
-    # "." is the file's folder, for a package's __init__.py as for its modules.
-    return relpath.split("/")[:-1]
+    module = module_of(relpath).split(".")
+    # "." is the file's own package: the module itself for an __init__.py.
+    return module if relpath.endswith("__init__.py") else module[:-1]
 
 
 def imports_of(tree: ast.AST, relpath: str) -> list[Import]:
@@ -157,68 +193,85 @@ def _localizer_calls(tree: ast.AST, relpath: str) -> list[str]:
     return problems
 
 
+def area_of(module: str) -> str:
+    """The most specific key of :data:`ALLOWED_INTERNAL` that holds ``module``."""
+    matches = [area for area in ALLOWED_INTERNAL if _within(module, (area,))]
+    return max(matches, key=len)
+
+
 def violations(source: str, relpath: str) -> list[str]:
     """Every arrow in ``source`` (the file ``relpath``, e.g. ``"sim/world.py"``) that
     runs the wrong way, each as ``"file:line: message"``; ``[]`` if there is none."""
     tree = ast.parse(source, filename=relpath)
-    package = relpath.split("/")[0]
+    area = area_of(module_of(relpath))
+    allowed = ALLOWED_INTERNAL[area]
     problems: list[str] = []
     for imp in imports_of(tree, relpath):
         where = f"{relpath}:{imp.lineno}: imports {imp.target!r}"
         if imp.target.startswith("<"):
             problems.append(f"{where}: a relative import above the top-level package")
-        elif relpath in SHARED_FILES and imp.top not in sys.stdlib_module_names:
-            problems.append(f"{where}: {relpath} is loaded by every layer; stdlib only")
-        elif imp.top in PACKAGES and not _within(imp.target, ALLOWED_INTERNAL[package]):
-            allowed = ", ".join(ALLOWED_INTERNAL[package])
-            problems.append(f"{where}: {package} may import only {allowed} of the project")
-        elif package == "localizer":
+        elif imp.top in OLD_TOP_LEVEL:
+            problems.append(f"{where}: the layers live under pipemap (pipemap.{imp.target})")
+        elif area in STDLIB_ONLY and imp.top not in sys.stdlib_module_names:
+            problems.append(f"{where}: {area} is loaded by every layer; stdlib only")
+        elif imp.top == "pipemap" and not _within(imp.target, allowed):
+            names = ", ".join(allowed) or "nothing"
+            problems.append(f"{where}: {area} may import only {names} of the project")
+        elif area == "pipemap.localizer":
             if imp.top in LOCALIZER_FORBIDDEN_STDLIB:
                 problems.append(f"{where}: the localizer touches no files and no clock")
             elif imp.target == "logging.basicConfig":
                 problems.append(f"{where}: only the CLI configures logging")
             elif not (
-                imp.top in PACKAGES
+                imp.top == "pipemap"
                 or imp.top in sys.stdlib_module_names
                 or imp.top in LOCALIZER_THIRD_PARTY
             ):
-                allowed = ", ".join(LOCALIZER_THIRD_PARTY)
-                problems.append(f"{where}: the localizer may use only the stdlib and {allowed}")
-        elif package == "sim" and imp.top in SIM_FORBIDDEN_THIRD_PARTY:
+                names = ", ".join(LOCALIZER_THIRD_PARTY)
+                problems.append(f"{where}: the localizer may use only the stdlib and {names}")
+        elif area == "pipemap.sim" and imp.top in SIM_FORBIDDEN_THIRD_PARTY:
             problems.append(f"{where}: the simulator knows nothing of logs or viewers")
-    if package == "localizer":
+    if area == "pipemap.localizer":
         problems += _localizer_calls(tree, relpath)
     return problems
 
 
 def source_files() -> list[str]:
-    """Every ``.py`` file of the five packages, relative to the repository root."""
+    """Every ``.py`` file of the packages, relative to the repository root."""
     files = []
-    for package in PACKAGES:
-        for path in sorted((ROOT / package).rglob("*.py")):
+    for folder in FOLDERS.values():
+        for path in sorted((ROOT / folder).rglob("*.py")):
             if "__pycache__" not in path.parts:
                 files.append(path.relative_to(ROOT).as_posix())
-    return files
+    return sorted(set(files))
 
 
 # ---------------------------------------------------------------- the project itself
 
 
+def test_the_package_map_is_the_build_backends() -> None:
+    """The folders checked here are the ones pyproject.toml installs."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert config["package-dir"] == {k: v for k, v in FOLDERS.items() if k != "pipemap"}
+    for package in config["packages"]:
+        assert package.split(".")[0] == "pipemap", f"{package} installs outside pipemap"
+
+
 def test_every_package_is_walked() -> None:
     files = source_files()
-    for package in PACKAGES:
-        assert f"{package}/__init__.py" in files, f"{package} not found under {ROOT}"
+    for folder in FOLDERS.values():
+        assert f"{folder}/__init__.py" in files, f"{folder} not found under {ROOT}"
     # The walk reaches the modules that make the arrows, not only the __init__ files.
     assert "localizer/fastmatch.py" in files
-    assert "pipemap/cli.py" in files
+    assert "pipemap/cli/app.py" in files
 
 
 def test_the_walker_sees_real_imports() -> None:
     """Guards against a checker that passes because it collects nothing."""
-    path = "pipemap/folder_commands.py"
+    path = "pipemap/cli/folder_commands.py"
     targets = {imp.target for imp in imports_of(ast.parse((ROOT / path).read_text()), path)}
-    assert "localizer.ImageSet" in targets
-    assert "pipemap.folders.load_image_sets" in targets
+    assert "pipemap.localizer.ImageSet" in targets
+    assert "pipemap.cli.folders.load_image_sets" in targets
 
 
 @pytest.mark.parametrize("relpath", source_files())
@@ -242,12 +295,15 @@ BAD_SOURCES = [
     pytest.param("localizer/x.py", "import rerun as rr\n", "'rerun'", id="localizer-rerun"),
     pytest.param(
         "localizer/x.py",
-        "def load():\n    from replay import reader\n",
-        "'replay.reader'",
+        "def load():\n    from pipemap.replay import reader\n",
+        "'pipemap.replay.reader'",
         id="localizer-replay-inside-function",
     ),
     pytest.param(
-        "localizer/x.py", "from pipemap.cli import main\n", "'pipemap.cli.main'", id="localizer-cli"
+        "localizer/x.py",
+        "from pipemap.cli import main\n",
+        "'pipemap.cli.main'",
+        id="localizer-cli",
     ),
     pytest.param("localizer/x.py", "import pipemap\n", "'pipemap'", id="localizer-pipemap"),
     pytest.param(
@@ -299,31 +355,45 @@ BAD_SOURCES = [
     ),
     pytest.param(
         "localizer/sub/x.py",
-        "from ...sim import world\n",
+        "from ....sim import world\n",
         "beyond top level",
         id="localizer-relative-escape",
     ),
     pytest.param(
-        "sim/x.py", "from localizer import ImageSet\n", "'localizer.ImageSet'", id="sim-localizer"
+        "localizer/x.py",
+        "from ..sim import world\n",
+        "'pipemap.sim.world'",
+        id="localizer-relative-sibling-layer",
     ),
-    pytest.param("sim/x.py", "import recorder\n", "'recorder'", id="sim-recorder"),
+    pytest.param(
+        "sim/x.py",
+        "from pipemap.localizer import ImageSet\n",
+        "'pipemap.localizer.ImageSet'",
+        id="sim-localizer",
+    ),
+    pytest.param("sim/x.py", "import pipemap.recorder\n", "'pipemap.recorder'", id="sim-recorder"),
     pytest.param(
         "sim/x.py", "from mcap.writer import Writer\n", "'mcap.writer.Writer'", id="sim-mcap"
     ),
+    pytest.param("sim/x.py", "from localizer import ImageSet\n", "live under", id="old-name"),
+    pytest.param("pipemap/cli/x.py", "import sim.world\n", "live under", id="cli-old-name"),
     pytest.param(
         "recorder/x.py",
-        "from replay.score import score\n",
-        "'replay.score.score'",
+        "from pipemap.replay.score import score\n",
+        "'pipemap.replay.score.score'",
         id="recorder-replay",
     ),
     pytest.param(
         "recorder/x.py",
-        "from pipemap.folders import load_image_set\n",
-        "'pipemap.folders.load_image_set'",
-        id="recorder-pipemap-folders",
+        "from pipemap.cli.folders import load_image_set\n",
+        "'pipemap.cli.folders.load_image_set'",
+        id="recorder-cli-folders",
     ),
-    pytest.param("replay/x.py", "import sim.world\n", "'sim.world'", id="replay-sim"),
+    pytest.param(
+        "replay/x.py", "import pipemap.sim.world\n", "'pipemap.sim.world'", id="replay-sim"
+    ),
     pytest.param("pipemap/errors.py", "import numpy\n", "'numpy'", id="errors-numpy"),
+    pytest.param("pipemap/errors.py", "from . import cli\n", "'pipemap.cli'", id="errors-cli"),
     pytest.param(
         "pipemap/__init__.py",
         "from pipemap.cli import main\n",
@@ -347,27 +417,31 @@ GOOD_SOURCES = [
         "from __future__ import annotations\nimport math\nimport numpy as np\n"
         "from scipy.signal import fftconvolve\nimport cv2\nimport networkx as nx\n"
         "from pipemap.errors import LocalizerError\nfrom pipemap import errors\n"
+        "from ..errors import PipemapError\n"
         "import logging\nlog = logging.getLogger(__name__)\n"
-        "from .similarity import SetMatch\nfrom localizer.imageset import ImageSet\n"
+        "from .similarity import SetMatch\nfrom pipemap.localizer.imageset import ImageSet\n"
         "small = cv2.resize(np.zeros((4, 4)), (2, 2))\n",
         id="localizer",
     ),
     pytest.param(
         "recorder/x.py",
-        "import mcap\nfrom sim import world\nfrom localizer import Localizer\n"
+        "import mcap\nfrom pipemap.sim import world\nfrom pipemap.localizer import Localizer\n"
         "from pipemap.errors import PipemapError\n",
         id="recorder",
     ),
     pytest.param(
         "replay/x.py",
-        "from recorder.topics import TOPICS\nimport localizer\ndef f():\n    import rerun\n",
+        "from pipemap.recorder.topics import TOPICS\nimport pipemap.localizer\n"
+        "def f():\n    import rerun\n",
         id="replay",
     ),
     pytest.param(
-        "pipemap/cli.py",
-        "from replay import score\nfrom recorder import Recorder\nimport sim\n",
-        id="pipemap-shell",
+        "pipemap/cli/app.py",
+        "from pipemap.replay import score\nfrom pipemap.recorder import Recorder\n"
+        "import pipemap.sim\nfrom . import parser\n",
+        id="cli",
     ),
+    pytest.param("pipemap/errors.py", "from __future__ import annotations\n", id="errors"),
 ]
 
 

@@ -137,7 +137,7 @@ def test_bad_camera_angle_in_sweep_txt(
 
 
 def test_sweep_txt_sets_the_camera_angle_and_info_txt_is_not_read(tmp_path: Path) -> None:
-    from pipemap.folders import load_image_set, read_info, write_image_set
+    from pipemap.cli.folders import load_image_set, read_info, write_image_set
 
     images = np.stack(textures(4))
     write_image_set(tmp_path / "turned", images, {"node": "A", "yaw": "1.0"}, 0.25)
@@ -526,7 +526,7 @@ def test_map_table(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
 
 
 def test_robust_preset_fills_in_its_settings_and_threshold() -> None:
-    from pipemap.parser import (
+    from pipemap.cli.parser import (
         ROBUST_HIGHPASS,
         ROBUST_THRESHOLD,
         ROBUST_ZOOMS,

@@ -11,10 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-from pipemap.experiment import CONDITIONS, IMAGE_COUNTS, STARTS
-from pipemap.experiment_report import FILES
-from pipemap.plots import SAME, Box, box_plot
-from replay import FileSource, pair_statistics, replay, true_sweeps
+from pipemap.cli.experiment import CONDITIONS, IMAGE_COUNTS, STARTS
+from pipemap.cli.experiment_report import FILES
+from pipemap.cli.plots import SAME, Box, box_plot
+from pipemap.replay import FileSource, pair_statistics, replay, true_sweeps
 
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:

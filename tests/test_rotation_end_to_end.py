@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from localizer import (
+from pipemap.localizer import (
     ImageSet,
     Localizer,
     LocalizerConfig,
@@ -24,7 +24,7 @@ from localizer import (
     sweep_features,
     wrap_angle_rad,
 )
-from sim import CameraSpec, Condition, Episode, SimConfig, World, build_network
+from pipemap.sim import CameraSpec, Condition, Episode, SimConfig, World, build_network
 
 TOLERANCE_RAD = 0.01
 

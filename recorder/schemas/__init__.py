@@ -20,7 +20,7 @@ from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-from recorder.schemas.pipemap_log_pb2 import (
+from pipemap.recorder.schemas.pipemap_log_pb2 import (
     ControllerState,
     Decision,
     Imu,

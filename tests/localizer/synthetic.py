@@ -13,7 +13,7 @@ import math
 import cv2
 import numpy as np
 
-from localizer import ImageSet
+from pipemap.localizer import ImageSet
 
 ROWS = 192
 STEP = 240

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from localizer import FastConfig, FastMatcher, ImageSet, pairwise_matches, wrap_angle_rad
-from localizer.fastmatch import prepare
-from localizer.similarity import reference_match
 from pipemap.errors import LocalizerError
+from pipemap.localizer import FastConfig, FastMatcher, ImageSet, pairwise_matches, wrap_angle_rad
+from pipemap.localizer.fastmatch import prepare
+from pipemap.localizer.similarity import reference_match
 from tests.localizer.synthetic import expected_rotation_rad, panorama, sweep
 
 # One fine-stage pixel (decimated by 4) of the synthetic sweeps, in radians, plus slack.
@@ -141,8 +141,8 @@ def test_a_pair_does_not_depend_on_the_other_sets(every_offset: bool) -> None:
 def test_screened_matches_equal_best_offset_per_junction() -> None:
     from dataclasses import replace
 
-    from localizer import best_offset
-    from localizer.fastmatch import _offset_scores, _screened_matches
+    from pipemap.localizer import best_offset
+    from pipemap.localizer.fastmatch import _offset_scores, _screened_matches
 
     rng = np.random.default_rng(4)
     peaks = rng.uniform(-0.2, 0.9, size=(7, 6, 6))

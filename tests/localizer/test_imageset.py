@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
 from pipemap.errors import LocalizerError, PipemapError
+from pipemap.localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
 
 
 def _images(n: int = 4, height: int = 16, width: int = 24, dtype: type = np.uint8) -> np.ndarray:

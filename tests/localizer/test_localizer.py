@@ -16,9 +16,10 @@ import cv2
 import numpy as np
 import pytest
 
-from localizer.fastmatch import FastConfig, FastMatcher
-from localizer.imageset import ImageSet
-from localizer.localizer import (
+from pipemap.errors import LocalizerError
+from pipemap.localizer.fastmatch import FastConfig, FastMatcher
+from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.localizer import (
     DEFAULT_THRESHOLD,
     PAPER,
     Decision,
@@ -29,8 +30,7 @@ from localizer.localizer import (
     best_candidate,
     probe_plan,
 )
-from localizer.similarity import SetMatch, wrap_angle_rad
-from pipemap.errors import LocalizerError
+from pipemap.localizer.similarity import SetMatch, wrap_angle_rad
 
 ROWS = 128
 COLS = 960

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from localizer import (
+from pipemap.localizer import (
     DEFAULT_THRESHOLD,
     FastMatcher,
     Localizer,

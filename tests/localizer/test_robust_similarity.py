@@ -14,9 +14,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from localizer import FastConfig, ImageSet, pairwise_matches
-from localizer.fastmatch import _high_passed, _zoomed, prepare
 from pipemap.errors import LocalizerError
+from pipemap.localizer import FastConfig, ImageSet, pairwise_matches
+from pipemap.localizer.fastmatch import _high_passed, _zoomed, prepare
 from tests.conftest import PaperSet
 
 ROBUST = FastConfig(zooms=(1.15, 1.3), highpass_fraction=0.125)
@@ -137,7 +137,7 @@ def test_robust_preset_separates_every_paper_pair_at_its_threshold(
     # --robust's threshold was chosen on simulated runs of our own renderer (see
     # benchmarks/eval_similarity.py); the paper's Gazebo images at 800 px fall on the
     # same scale. Measured: same pairs >= 0.133, different pairs <= 0.0601.
-    from pipemap.parser import ROBUST_HIGHPASS, ROBUST_THRESHOLD, ROBUST_ZOOMS
+    from pipemap.cli.parser import ROBUST_HIGHPASS, ROBUST_THRESHOLD, ROBUST_ZOOMS
 
     names = sorted(paper_sets)
     config = FastConfig(zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS, baseline=True)

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from localizer import ImageSet, best_offset, ncc_same, pair_peak, reference_match
-from localizer.similarity import (
+from pipemap.localizer import ImageSet, best_offset, ncc_same, pair_peak, reference_match
+from pipemap.localizer.similarity import (
     _correlate_same,
     relative_rotation_rad,
     window_sums,

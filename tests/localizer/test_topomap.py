@@ -9,11 +9,11 @@ from collections.abc import Sequence
 
 import pytest
 
-from localizer.localizer import Decision, ProbeKind, ProbeOutcome, ProbeRequest
-from localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
-from localizer.similarity import SetMatch
-from localizer.topomap import MapEdge, TopoMap
-from localizer.twoview import TwoViewFit
+from pipemap.localizer.localizer import Decision, ProbeKind, ProbeOutcome, ProbeRequest
+from pipemap.localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
+from pipemap.localizer.similarity import SetMatch
+from pipemap.localizer.topomap import MapEdge, TopoMap
+from pipemap.localizer.twoview import TwoViewFit
 
 #: A tree explored depth first: S A B A C D C E C F C A S.
 TREE_VISITS = (0, 1, 2, 1, 3, 4, 3, 5, 3, 6, 3, 1, 0)

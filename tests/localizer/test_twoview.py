@@ -8,9 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
-from localizer.imageset import ImageSet
-from localizer.similarity import wrap_angle_rad
-from localizer.twoview import SweepFeatures, TwoViewConfig, fit_two_view, sweep_features
+from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.similarity import wrap_angle_rad
+from pipemap.localizer.twoview import SweepFeatures, TwoViewConfig, fit_two_view, sweep_features
 
 PIXEL_RAD = 1.0 / 240.0  # about a 400 px image with an 80 degree field of view
 

@@ -10,7 +10,7 @@ from mcap.opcode import Opcode
 from mcap.writer import Writer as McapWriter
 
 from pipemap.errors import LogFormatError
-from recorder import METADATA_RESULT, METADATA_RUN, Integrity, Topic, read_log
+from pipemap.recorder import METADATA_RESULT, METADATA_RUN, Integrity, Topic, read_log
 from tests.logs import write_synthetic_log
 
 

@@ -11,7 +11,15 @@ from pathlib import Path
 
 import pytest
 
-from recorder import METADATA_RESULT, METADATA_RUN, TOPICS, Integrity, Topic, read_log, schemas
+from pipemap.recorder import (
+    METADATA_RESULT,
+    METADATA_RUN,
+    TOPICS,
+    Integrity,
+    Topic,
+    read_log,
+    schemas,
+)
 from tests.logs import SMALL_RUN, record
 
 

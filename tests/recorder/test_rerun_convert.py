@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from recorder import Topic, read_log
+from pipemap.recorder import Topic, read_log
 from tests.logs import rerun_cli
 
 

@@ -13,8 +13,8 @@ import pytest
 from google.protobuf.descriptor import FieldDescriptor
 from google.protobuf.message_factory import GetMessageClass
 
-from recorder import TOPICS, LogWriter, read_log, schemas
-from recorder.schemas import pipemap_log_pb2
+from pipemap.recorder import TOPICS, LogWriter, read_log, schemas
+from pipemap.recorder.schemas import pipemap_log_pb2
 
 SCHEMAS = Path(pipemap_log_pb2.__file__).parent
 

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from recorder import Integrity
-from recorder.reader import gc_paused
-from replay import FileSource, PackedLog
+from pipemap.recorder import Integrity
+from pipemap.recorder.reader import gc_paused
+from pipemap.replay import FileSource, PackedLog
 
 LOG = Path(__file__).resolve().parents[2] / "recordings" / "paper_autonomous.mcap"
 

@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from replay import FileSource, replay, score_replay
+from pipemap.replay import FileSource, replay, score_replay
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
 LOGS = sorted(p.stem for p in RECORDINGS.glob("*.mcap"))

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from mcap.writer import Writer as McapWriter
 
-from localizer import dumps_document
-from recorder import METADATA_RUN, LogWriter, Topic, read_log, schemas
-from replay import FileSource, replay
+from pipemap.localizer import dumps_document
+from pipemap.recorder import METADATA_RUN, LogWriter, Topic, read_log, schemas
+from pipemap.replay import FileSource, replay
 
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from recorder import METADATA_RUN, LogWriter, read_log
-from replay.score import _map_correct
+from pipemap.recorder import METADATA_RUN, LogWriter, read_log
+from pipemap.replay.score import _map_correct
 
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:

@@ -17,12 +17,11 @@ from typing import Any
 
 import pytest
 
-from pipemap import view_command
-from pipemap.cli import main
-from recorder import Topic, read_log
-from recorder.schemas import CompressedImage, Ranges
-from replay import FileSource, replay
-from replay.view import save_view
+from pipemap.cli import main, view_command
+from pipemap.recorder import Topic, read_log
+from pipemap.recorder.schemas import CompressedImage, Ranges
+from pipemap.replay import FileSource, replay
+from pipemap.replay.view import save_view
 from tests.logs import rerun_cli
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"

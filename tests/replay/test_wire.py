@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from pipemap.errors import LogFormatError
-from recorder import schemas
-from recorder.messages import pose_message
-from replay.wire import decode_columns, spec_of
+from pipemap.recorder import schemas
+from pipemap.recorder.messages import pose_message
+from pipemap.replay.wire import decode_columns, spec_of
 
 
 def test_flat_messages_with_zero_fields_left_out() -> None:

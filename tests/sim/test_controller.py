@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from sim import CameraSpec, World, build_network, right_hand_tour
-from sim.controller import ExplorerConfig, RunStatus, autonomous_run
-from sim.network import NodeKind
+from pipemap.sim import CameraSpec, World, build_network, right_hand_tour
+from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
+from pipemap.sim.network import NodeKind
 
 TINY = CameraSpec(resolution_px=32)
 
@@ -35,7 +35,7 @@ def test_heading_estimate_holds_with_a_biased_gyro(paper_world) -> None:  # type
     # The gyro's bias (0.001 rad/s standard deviation) would turn the heading by up to
     # 20 degrees over a run; measured whenever the robot stands still, it stays within
     # 2 degrees, so sweeps aligned to the heading estimate line up between visits.
-    from sim.robot import RobotSpec
+    from pipemap.sim.robot import RobotSpec
 
     result = autonomous_run(paper_world, TINY, seed=3, start="S")
     step = 2 * math.pi / 6
@@ -125,7 +125,7 @@ def test_shallow_corner_centre_is_where_the_axes_cross(headings: tuple[float, fl
     # The robot stands 8 cm up the first pipe, as a misjudged approach leaves it: on
     # a pipe's axis every point fits the widest circle, so only the axes' crossing
     # finds the corner (the 137 degree corner of random:8 seed 2 was missed by 8 cm).
-    from sim.controller import _axes_crossing
+    from pipemap.sim.controller import _axes_crossing
 
     forward = 0.06
     up = 0.08 * np.array([math.cos(math.radians(headings[0])), math.sin(math.radians(headings[0]))])
@@ -140,7 +140,7 @@ def test_shallow_corner_centre_is_where_the_axes_cross(headings: tuple[float, fl
 def test_sharp_corners_and_straight_pipes_are_left_to_the_widest_circle(
     headings: tuple[float, float],
 ) -> None:
-    from sim.controller import _axes_crossing
+    from pipemap.sim.controller import _axes_crossing
 
     samples, walls = _corner_scan(headings, (0.0, 0.0), 0.06)
     openings = [math.radians(h) for h in headings]

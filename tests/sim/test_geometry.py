@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sim.geometry import Mesh, chamber_mesh, half_pipe_mesh, wall_start_m
+from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh, wall_start_m
 
 R = 0.1
 PHIS = np.linspace(0.0, 2.0 * math.pi, 97)

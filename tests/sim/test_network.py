@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pipemap.errors import SimError
-from sim.network import (
+from pipemap.sim.network import (
     Network,
     Node,
     NodeKind,

@@ -8,8 +8,8 @@ import networkx as nx
 import pytest
 
 from pipemap.errors import SimError
-from sim.network import Network, Node, Pipe, build_network, wrap_rad
-from sim.plan import TourEnd, Visit, right_hand_tour, right_most_exit, tour_edges
+from pipemap.sim.network import Network, Node, Pipe, build_network, wrap_rad
+from pipemap.sim.plan import TourEnd, Visit, right_hand_tour, right_most_exit, tour_edges
 
 #: The right-hand rule on the paper network, from each start. From S the robot goes
 #: north; at A the right-most exit is B (east); back at A heading west it turns right

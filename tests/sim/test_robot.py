@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from pipemap.errors import SimError
-from sim import World, build_network
-from sim.robot import EncoderReading, ImuReading, PlanarPose, RangeReading, Robot, RobotSpec
+from pipemap.sim import World, build_network
+from pipemap.sim.robot import EncoderReading, ImuReading, PlanarPose, RangeReading, Robot, RobotSpec
 
 R = 0.1
 # A horizontal ray at the rangers' height (5 cm above the floor of a 20 cm pipe) meets

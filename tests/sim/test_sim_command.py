@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from localizer import DEFAULT_THRESHOLD, pairwise_matches, wrap_angle_rad
 from pipemap.cli import main
-from pipemap.folders import load_image_set, read_info
+from pipemap.cli.folders import load_image_set, read_info
+from pipemap.localizer import DEFAULT_THRESHOLD, pairwise_matches, wrap_angle_rad
 
 
 def _run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
@@ -166,15 +166,15 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     # The robot may believe it is back at the start when it is not; the simulator knows.
     import numpy as np
 
-    import sim.controller
-    from sim.controller import ExplorationResult, RunStatus
-    from sim.episode import Pose, Sweep
+    from pipemap.sim import controller
+    from pipemap.sim.controller import ExplorationResult, RunStatus
+    from pipemap.sim.episode import Pose, Sweep
 
     def one_sweep_run(world, camera, seed, start=None, config=None):  # type: ignore[no-untyped-def]
         sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8), Pose(0.0, 0.0, 0.05), "S")
         return ExplorationResult(RunStatus.FINISHED, sweeps=[sweep], distance_m=1.0)
 
-    monkeypatch.setattr(sim.controller, "autonomous_run", one_sweep_run)
+    monkeypatch.setattr(controller, "autonomous_run", one_sweep_run)
     argv = ["sim", "--network", "paper", "--condition", "autonomous", "--resolution", "32"]
     status, out, _ = _run([*argv, "--save-sweeps", str(tmp_path / "early")], capfd)
     assert status == 1

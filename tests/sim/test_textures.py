@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from pipemap.errors import SimError
-from sim.textures import MATERIALS, node_texture, pipe_texture
+from pipemap.sim.textures import MATERIALS, node_texture, pipe_texture
 
 # Small textures keep the module fast; every size is metric, so the look holds.
 PIPE_PX = {"width_px": 128, "height_px": 64}

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pipemap.errors import SimError
-from sim import CameraSpec, Condition, Episode, SimConfig, World, build_network
+from pipemap.sim import CameraSpec, Condition, Episode, SimConfig, World, build_network
 
 SMALL = CameraSpec(resolution_px=96)
 

@@ -16,13 +16,13 @@ from typing import Any
 
 import cv2
 
-from pipemap.experiment import (
+from pipemap.cli.experiment import (
     CONDITIONS,
     ExperimentResult,
     RunOutcome,
     summary,
 )
-from pipemap.plots import DIFFERENT, SAME, Box, box_plot
+from pipemap.cli.plots import DIFFERENT, SAME, Box, box_plot
 
 __all__ = ["PAPER", "experiment_document", "write_experiment"]
 

@@ -14,7 +14,7 @@ __all__ = ["run_experiment"]
 
 
 def _check_folder(folder: Path, force: bool) -> None:
-    from pipemap.experiment_report import FILES
+    from pipemap.cli.experiment_report import FILES
 
     if folder.exists() and not folder.is_dir():
         raise InputError(f"--out {folder}: is a file, not a folder")
@@ -31,8 +31,8 @@ def _check_folder(folder: Path, force: bool) -> None:
 def run_experiment(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Run every run of the experiment, then write its markdown, JSON and figures."""
     from pipemap import __version__
-    from pipemap.experiment import ExperimentSettings, RunOutcome, paper_experiment
-    from pipemap.experiment_report import write_experiment
+    from pipemap.cli.experiment import ExperimentSettings, RunOutcome, paper_experiment
+    from pipemap.cli.experiment_report import write_experiment
 
     folder = Path(args.out)
     _check_folder(folder, args.force)

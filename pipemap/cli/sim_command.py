@@ -3,7 +3,7 @@
 ``DIR/0001``, ``DIR/0002``, ... in visit order, each ``camera_image1..N.png`` plus
 ``info.txt`` with the camera pose at the sweep start and the true node, so that
 ``pipemap map DIR/*`` maps the run. A sweep that did not start straight ahead has
-a ``sweep.txt`` with its camera angle (see :mod:`pipemap.folders`). In the
+a ``sweep.txt`` with its camera angle (see :mod:`pipemap.cli.folders`). In the
 ``active`` condition the localizer runs online and its probe sweeps go to
 ``DIR/NNNN/probes/<kind>/`` (inside the visit's folder, so they are not visits
 themselves).
@@ -18,8 +18,8 @@ from typing import TextIO
 import cv2
 import numpy as np
 
+from pipemap.cli.folders import write_image_set
 from pipemap.errors import InputError
-from pipemap.folders import write_image_set
 
 __all__ = ["run_sim"]
 
@@ -35,7 +35,7 @@ def _info(pose: object, node: str) -> dict[str, str]:
 
 
 def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float):  # type: ignore[no-untyped-def]
-    from localizer import ImageSet
+    from pipemap.localizer import ImageSet
 
     gray = np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images])
     return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
@@ -43,9 +43,9 @@ def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float):  # t
 
 def run_sim(args: argparse.Namespace, out: TextIO) -> int:
     """Validate, build the world, run the episode, write the sweeps, print a summary."""
-    from sim.episode import Condition, Episode, SimConfig
-    from sim.network import build_network
-    from sim.world import CameraSpec, World
+    from pipemap.sim.episode import Condition, Episode, SimConfig
+    from pipemap.sim.network import build_network
+    from pipemap.sim.world import CameraSpec, World
 
     target = Path(args.save_sweeps)
     if target.exists() and (not target.is_dir() or any(target.iterdir())):
@@ -71,7 +71,7 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
         episode = Episode(world, config, start=args.start)
         localizer = None
         if condition is Condition.ACTIVE:
-            from localizer import Localizer
+            from pipemap.localizer import Localizer
 
             localizer = Localizer()
         sweeps = 0
@@ -98,8 +98,8 @@ def run_sim(args: argparse.Namespace, out: TextIO) -> int:
 
 def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  # type: ignore[no-untyped-def]
     """The full exploration by the sensor-driven controller; sweeps are kept whatever ends it."""
-    from sim.controller import ExplorerConfig, RunStatus, autonomous_run
-    from sim.world import World
+    from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
+    from pipemap.sim.world import World
 
     with World(network, seed=args.seed) as world:
         config = ExplorerConfig(images_per_sweep=args.images, align_sweeps=args.align_sweeps)

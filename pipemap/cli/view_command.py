@@ -27,18 +27,18 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, TextIO
 
-from pipemap.errors import InputError, ViewerError
-from pipemap.replay_commands import (
+from pipemap.cli.replay_commands import (
     check_output,
     localizer_config,
     open_source,
     progress_printer,
 )
+from pipemap.errors import InputError, ViewerError
 
 if TYPE_CHECKING:
-    from localizer import LocalizerConfig
-    from replay import MessageSource, PackedLog, ReplayResult
-    from replay.view import Replayed
+    from pipemap.localizer import LocalizerConfig
+    from pipemap.replay import MessageSource, PackedLog, ReplayResult
+    from pipemap.replay.view import Replayed
 
 __all__ = ["check_view_target", "run_view", "view_recorded"]
 
@@ -83,7 +83,7 @@ def _summary(name: str, result: ReplayResult) -> str:
 
 
 def _show(source: MessageSource, result: Replayed, target: Path | None) -> None:
-    from replay.view import save_view, spawn_view
+    from pipemap.replay.view import save_view, spawn_view
 
     if target is None:
         spawn_view(source, result)
@@ -133,7 +133,7 @@ class _Child:
         try:
             with os.fdopen(write_end, "wb") as pipe:
                 try:
-                    from replay import PackedLog, replay
+                    from pipemap.replay import PackedLog, replay
 
                     source = open_log()
                     pickle.dump(PackedLog.of(source, _VIEWED), spool, protocol=_PROTOCOL)
@@ -223,7 +223,7 @@ def _view(
     """
     spool = _spool()
     if spool is None:
-        from replay import replay
+        from pipemap.replay import replay
 
         source = open_log()
         done = replay(source, config(), progress_printer(err))
@@ -234,7 +234,7 @@ def _view(
             # Imported here while the child reads the log, not after.
             import rerun  # noqa: F401
 
-            from replay import view  # noqa: F401
+            from pipemap.replay import view  # noqa: F401
 
             _show(child.log(), child.result, target)
             done = child.result()
@@ -250,8 +250,8 @@ def view_recorded(
     log: Path, target: Path | None, threshold: float, out: TextIO, err: TextIO
 ) -> None:
     """Right after ``pipemap record --view``: replay the new log and show or save it."""
-    from localizer import LocalizerConfig
-    from replay import FileSource
+    from pipemap.localizer import LocalizerConfig
+    from pipemap.replay import FileSource
 
     _view(
         lambda: FileSource(log),

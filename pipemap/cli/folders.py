@@ -20,8 +20,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from localizer import ImageSet
 from pipemap.errors import InputError
+from pipemap.localizer import ImageSet
 
 __all__ = ["IMAGE_SUFFIXES", "load_image_set", "load_image_sets", "read_info", "write_image_set"]
 

@@ -12,8 +12,8 @@ import logging
 import sys
 from collections.abc import Sequence
 
+from pipemap.cli.parser import apply_presets, build_parser
 from pipemap.errors import PipemapError
-from pipemap.parser import apply_presets, build_parser
 
 __all__ = ["main"]
 
@@ -27,32 +27,32 @@ def _run(argv: Sequence[str] | None) -> int:
         stream=sys.stderr,
     )
     if args.command in ("match", "map"):
-        from pipemap import folder_commands
+        from pipemap.cli import folder_commands
 
         runner = folder_commands.run_match if args.command == "match" else folder_commands.run_map
         return runner(args, sys.stdout)
     if args.command == "sim":
-        from pipemap.sim_command import run_sim
+        from pipemap.cli.sim_command import run_sim
 
         return run_sim(args, sys.stdout)
     if args.command in ("record", "info"):
-        from pipemap import log_commands
+        from pipemap.cli import log_commands
 
         if args.command == "record":
             return log_commands.run_record(args, sys.stdout, sys.stderr)
         return log_commands.run_info(args, sys.stdout)
     if args.command in ("replay", "score"):
-        from pipemap import replay_commands
+        from pipemap.cli import replay_commands
 
         if args.command == "replay":
             return replay_commands.run_replay(args, sys.stdout, sys.stderr)
         return replay_commands.run_score(args, sys.stdout, sys.stderr)
     if args.command == "experiment":
-        from pipemap.experiment_command import run_experiment
+        from pipemap.cli.experiment_command import run_experiment
 
         return run_experiment(args, sys.stdout, sys.stderr)
     if args.command == "view":
-        from pipemap.view_command import run_view
+        from pipemap.cli.view_command import run_view
 
         return run_view(args, sys.stdout, sys.stderr)
     raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other

@@ -13,7 +13,7 @@ scored from its log, exactly as a user would, so the numbers here are the number
   (Figure 6);
 * the autonomous exploration from each of the seven nodes, at pipemap's defaults.
 
-This module computes; :mod:`pipemap.experiment_report` writes the files.
+This module computes; :mod:`pipemap.cli.experiment_report` writes the files.
 """
 
 from __future__ import annotations
@@ -26,12 +26,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from localizer import PAPER
 from pipemap import __version__
-from recorder import RecordSettings, record_run
-from replay import FileSource, PairStatistics, replay, score_replay
-from sim.episode import Condition
-from sim.network import build_network
+from pipemap.localizer import PAPER
+from pipemap.recorder import RecordSettings, record_run
+from pipemap.replay import FileSource, PairStatistics, replay, score_replay
+from pipemap.sim.episode import Condition
+from pipemap.sim.network import build_network
 
 __all__ = [
     "CONDITIONS",

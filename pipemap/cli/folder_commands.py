@@ -10,7 +10,9 @@ import argparse
 import json
 from typing import Any, TextIO
 
-from localizer import (
+from pipemap.cli.folders import load_image_sets
+from pipemap.cli.parser import fast_config, two_view_settings
+from pipemap.localizer import (
     ImageSet,
     Localizer,
     LocalizerConfig,
@@ -20,8 +22,6 @@ from localizer import (
     pairwise_matches,
     reference_match,
 )
-from pipemap.folders import load_image_sets
-from pipemap.parser import fast_config, two_view_settings
 
 __all__ = ["match_document", "run_map", "run_match"]
 

@@ -59,9 +59,9 @@ def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, run the episode while writing its log, print a summary."""
-    from recorder import RecordSettings, record_run
-    from sim.episode import Condition
-    from sim.network import build_network
+    from pipemap.recorder import RecordSettings, record_run
+    from pipemap.sim.episode import Condition
+    from pipemap.sim.network import build_network
 
     target = Path(args.output)
     if target.is_dir():
@@ -79,7 +79,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         raise InputError("--save: writes the view of the run, so it needs --view")
     view_target = None
     if args.view:
-        from pipemap.view_command import check_view_target
+        from pipemap.cli.view_command import check_view_target
 
         view_target = check_view_target(target, args.save, args.force)
     settings = RecordSettings(
@@ -114,7 +114,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         f"{result.status}\n"
     )
     if args.view:
-        from pipemap.view_command import view_recorded
+        from pipemap.cli.view_command import view_recorded
 
         view_recorded(target, view_target, args.threshold, out, err)
     return 0 if result.ok else 1
@@ -122,8 +122,8 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 
 def info_document(path: Path) -> dict[str, Any]:
     """What ``pipemap info --json`` prints."""
-    from recorder import METADATA_RESULT, METADATA_RUN, Topic, read_log
-    from recorder.schemas import NodeEvent, SweepCommand
+    from pipemap.recorder import METADATA_RESULT, METADATA_RUN, Topic, read_log
+    from pipemap.recorder.schemas import NodeEvent, SweepCommand
 
     contents = read_log(path, keep=lambda topic: topic in (Topic.SWEEP, Topic.NODE))
     sweeps = visits = 0

@@ -12,8 +12,8 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+from pipemap.cli.parser import fast_config, two_view_settings
 from pipemap.errors import InputError
-from pipemap.parser import fast_config, two_view_settings
 
 __all__ = [
     "check_output",
@@ -29,7 +29,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
     """The localizer's settings from ``--threshold``, ``--no-active-vision``,
     ``--allow-repeat``, ``--no-verify``, ``--no-two-view`` and the similarity options
     (``--downsample``, ``--zoom``, ...)."""
-    from localizer import LocalizerConfig
+    from pipemap.localizer import LocalizerConfig
 
     two_view, verify = two_view_settings(args)
     return LocalizerConfig(
@@ -44,8 +44,8 @@ def localizer_config(args: argparse.Namespace) -> Any:
 
 def open_source(args: argparse.Namespace, err: TextIO) -> Any:
     """The log ``args.log`` as a replay source; warns on ``err`` when it is cut or damaged."""
-    from recorder import Integrity
-    from replay import FileSource
+    from pipemap.recorder import Integrity
+    from pipemap.replay import FileSource
 
     source = FileSource(Path(args.log))
     if source.integrity is Integrity.TRUNCATED:
@@ -91,8 +91,8 @@ def check_output(path: str | None, force: bool) -> Path | None:
 
 def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log and write its map document."""
-    from localizer import dumps_document
-    from replay import replay
+    from pipemap.localizer import dumps_document
+    from pipemap.replay import replay
 
     target = check_output(args.output, args.force)
     graphml = check_output(args.graphml, args.force)
@@ -119,7 +119,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 
 def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log, compare with its truth, print (and save) the score."""
-    from replay import replay, score_replay
+    from pipemap.replay import replay, score_replay
 
     folder = None
     if args.save_results is not None:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from pipemap import __version__
 
 if TYPE_CHECKING:
-    from localizer import FastConfig
+    from pipemap.localizer import FastConfig
 
 __all__ = ["build_parser"]
 
@@ -145,7 +145,7 @@ def add_similarity_options(p: argparse.ArgumentParser) -> None:
 
 def fast_config(args: argparse.Namespace) -> FastConfig:
     """The :class:`localizer.FastConfig` of the options of :func:`add_similarity_options`."""
-    from localizer import FastConfig
+    from pipemap.localizer import FastConfig
 
     downsample = FastConfig().fine_downsample if args.downsample is None else args.downsample
     return FastConfig(
