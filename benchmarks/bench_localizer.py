@@ -44,7 +44,7 @@ cv2.setNumThreads(1)
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from pipemap.cli.folders import load_image_set, read_info  # noqa: E402
+from pipemap.imagesets import load_image_set, read_info  # noqa: E402
 from pipemap.localizer import (  # noqa: E402
     DEFAULT_THRESHOLD,
     FastConfig,

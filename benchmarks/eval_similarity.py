@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pipemap.cli.folders import load_image_sets, read_info
 from pipemap.cli.parser import ROBUST_HIGHPASS, ROBUST_ZOOMS
+from pipemap.imagesets import load_image_sets, read_info
 from pipemap.localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
 
 CONFIGS = {

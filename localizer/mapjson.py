@@ -35,7 +35,8 @@ def decision_record(label: str, decision: Decision) -> dict[str, Any]:
         "set": label,
         "node": decision.node,
         "known": decision.known,
-        "similarity": _round(decision.similarity),
+        # No candidate (the first visits): nothing was compared, so no similarity.
+        "similarity": None if decision.candidate is None else _round(decision.similarity),
         "margin": _round(decision.margin),
         "candidate": decision.candidate,
         "image_shift": None if match is None else match.image_shift,

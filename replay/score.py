@@ -60,7 +60,8 @@ class VisitScore:
     predicted_node: int
     known: bool
     outcome: str
-    similarity: float
+    #: ``None`` when the visit had no candidate (nothing to compare with).
+    similarity: float | None
     margin: float | None
     candidate: int | None
     rotation_rad: float | None
@@ -120,7 +121,7 @@ class ScoreReport:
         for v in self.visits:
             # A visit without a candidate had nothing to compare with: the first, and
             # the second, which cannot be the junction it came from.
-            if v.candidate is None:
+            if v.similarity is None:
                 pass
             elif v.true_node in seen:
                 known_sims.append(v.similarity)
@@ -297,7 +298,7 @@ def score_replay(
                 predicted_node=d.node,
                 known=d.known,
                 outcome=outcome,
-                similarity=d.similarity,
+                similarity=None if d.candidate is None else d.similarity,
                 margin=d.margin,
                 candidate=d.candidate,
                 rotation_rad=estimate,

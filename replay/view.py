@@ -80,7 +80,7 @@ def describe_decision(visit: VisitDecision) -> str:
     parts = [
         f"visit {visit_label(visit.visit_id)} -> node {d.node}",
         "known" if d.known else "new",
-        f"similarity {d.similarity:.3f}",
+        "similarity -" if d.candidate is None else f"similarity {d.similarity:.3f}",
         f"margin {_num(d.margin)}",
         f"candidate {'-' if d.candidate is None else d.candidate}",
     ]

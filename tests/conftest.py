@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from pipemap.cli.folders import load_image_set, read_info
+from pipemap.imagesets import load_image_set, read_info
 from pipemap.localizer import ImageSet
 
 REPO = Path(__file__).resolve().parents[1]

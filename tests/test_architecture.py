@@ -48,6 +48,19 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.errors",
     ),
     "pipemap.replay": ("pipemap.replay", "pipemap.recorder", "pipemap.localizer", "pipemap.errors"),
+    # Image-set folders in the paper's layout: files in, localizer image sets out.
+    "pipemap.imagesets": ("pipemap.localizer", "pipemap.errors"),
+    # The Python API: what the CLI calls, and what a script or notebook imports.
+    "pipemap.api": (
+        "pipemap.api",
+        "pipemap.__version__",
+        "pipemap.replay",
+        "pipemap.recorder",
+        "pipemap.sim",
+        "pipemap.localizer",
+        "pipemap.imagesets",
+        "pipemap.errors",
+    ),
     "pipemap.cli": ("pipemap",),
     "pipemap.__main__": ("pipemap.cli",),  # ``python -m pipemap``
 }
@@ -271,7 +284,7 @@ def test_the_walker_sees_real_imports() -> None:
     path = "pipemap/cli/folder_commands.py"
     targets = {imp.target for imp in imports_of(ast.parse((ROOT / path).read_text()), path)}
     assert "pipemap.localizer.ImageSet" in targets
-    assert "pipemap.cli.folders.load_image_sets" in targets
+    assert "pipemap.imagesets.load_image_sets" in targets
 
 
 @pytest.mark.parametrize("relpath", source_files())
@@ -385,9 +398,9 @@ BAD_SOURCES = [
     ),
     pytest.param(
         "recorder/x.py",
-        "from pipemap.cli.folders import load_image_set\n",
-        "'pipemap.cli.folders.load_image_set'",
-        id="recorder-cli-folders",
+        "from pipemap.imagesets import load_image_set\n",
+        "'pipemap.imagesets.load_image_set'",
+        id="recorder-imagesets",
     ),
     pytest.param(
         "replay/x.py", "import pipemap.sim.world\n", "'pipemap.sim.world'", id="replay-sim"

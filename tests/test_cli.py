@@ -137,7 +137,7 @@ def test_bad_camera_angle_in_sweep_txt(
 
 
 def test_sweep_txt_sets_the_camera_angle_and_info_txt_is_not_read(tmp_path: Path) -> None:
-    from pipemap.cli.folders import load_image_set, read_info, write_image_set
+    from pipemap.imagesets import load_image_set, read_info, write_image_set
 
     images = np.stack(textures(4))
     write_image_set(tmp_path / "turned", images, {"node": "A", "yaw": "1.0"}, 0.25)

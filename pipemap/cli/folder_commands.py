@@ -10,15 +10,14 @@ import argparse
 import json
 from typing import Any, TextIO
 
-from pipemap.cli.folders import load_image_sets
+from pipemap import api
 from pipemap.cli.parser import fast_config, two_view_settings
+from pipemap.imagesets import load_image_sets
 from pipemap.localizer import (
     ImageSet,
-    Localizer,
     LocalizerConfig,
     SetMatch,
     dumps_document,
-    map_document,
     pairwise_matches,
     reference_match,
 )
@@ -94,7 +93,6 @@ def _rotation(visit: dict[str, Any]) -> str:
 
 def run_map(args: argparse.Namespace, out: TextIO) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
-    sets = _load(args)
     two_view, verify = two_view_settings(args)
     config = LocalizerConfig(
         threshold=args.threshold,
@@ -103,9 +101,7 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
         two_view=two_view,
         verify=verify,
     )
-    localizer = Localizer(config)
-    visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]
-    doc = map_document(localizer.map, visits)
+    doc = api.map_image_sets(args.dirs, config, args.fov_deg, args.keep_top)
     if args.json:
         out.write(dumps_document(doc))
         return 0
@@ -113,9 +109,10 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
     out.write(f"{'set':<{width}}  node  known  similarity  margin  rotation\n")
     for v in doc["visits"]:
         margin = "-" if v["margin"] is None else f"{v['margin']:.3f}"
+        similarity = "-" if v["similarity"] is None else f"{v['similarity']:.3f}"
         out.write(
             f"{v['set']:<{width}}  {v['node']:4d}  {'yes' if v['known'] else 'no ':>5}"
-            f"  {v['similarity']:10.3f}  {margin:>6}  {_rotation(v):>8}\n"
+            f"  {similarity:>10}  {margin:>6}  {_rotation(v):>8}\n"
         )
     edges = ", ".join(f"{e['u']}-{e['v']} ({e['label']})" for e in doc["edges"])
     out.write(f"{len(doc['nodes'])} nodes; edges: {edges or 'none'}\n")

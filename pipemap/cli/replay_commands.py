@@ -157,11 +157,9 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         "visit  true  node  known  similarity  margin    rotation  error      outcome",
     ]
     for v in doc["per_visit"]:
-        # A visit without a candidate compared with nothing: no similarity to show.
-        similarity = v["similarity"] if v["candidate"] is not None else None
         lines.append(
             f"{v['visit']}   {v['true_node']:<4}  {v['predicted_node']:<4}  "
-            f"{'yes' if v['known'] else 'no':<5}  {_num(similarity):<10}  "
+            f"{'yes' if v['known'] else 'no':<5}  {_num(v['similarity']):<10}  "
             f"{_num(v['margin']):<8}  {_num(v['rotation_rad']):<9}  "
             f"{_num(v['rotation_error_rad']):<9}  {v['outcome']}"
         )

@@ -3,7 +3,7 @@
 ``DIR/0001``, ``DIR/0002``, ... in visit order, each ``camera_image1..N.png`` plus
 ``info.txt`` with the camera pose at the sweep start and the true node, so that
 ``pipemap map DIR/*`` maps the run. A sweep that did not start straight ahead has
-a ``sweep.txt`` with its camera angle (see :mod:`pipemap.cli.folders`). In the
+a ``sweep.txt`` with its camera angle (see :mod:`pipemap.imagesets`). In the
 ``active`` condition the localizer runs online and its probe sweeps go to
 ``DIR/NNNN/probes/<kind>/`` (inside the visit's folder, so they are not visits
 themselves).
@@ -18,8 +18,8 @@ from typing import TextIO
 import cv2
 import numpy as np
 
-from pipemap.cli.folders import write_image_set
 from pipemap.errors import InputError
+from pipemap.imagesets import write_image_set
 
 __all__ = ["run_sim"]
 

@@ -278,7 +278,7 @@ def test_map_document_structure() -> None:
         "set": "set_a",
         "node": 0,
         "known": False,
-        "similarity": 0.0,
+        "similarity": None,  # no candidate: nothing was compared
         "margin": None,
         "candidate": None,
         "image_shift": None,
@@ -353,7 +353,7 @@ def test_document_never_emits_negative_zero(tiny: float) -> None:
 
 
 def test_small_negative_values_keep_their_sign_when_not_zero() -> None:
-    d = _decision(0, False, -0.25, -1e-6)
+    d = _decision(1, False, -0.25, -1e-6, candidate=0)
     record = decision_record("x", d)
     assert record["similarity"] == -0.25
     assert record["margin"] == -1e-6
@@ -361,8 +361,8 @@ def test_small_negative_values_keep_their_sign_when_not_zero() -> None:
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_dumps_document_rejects_non_finite(bad: float) -> None:
-    d = _decision(0, False, bad, None)
-    doc = map_document(_built([0]), [("x", d)])
+    d = _decision(1, False, bad, None, candidate=0)
+    doc = map_document(_built([0, 1]), [("x", d)])
     with pytest.raises(ValueError):
         dumps_document(doc)
 

@@ -162,7 +162,8 @@ def test_the_map_grows_into_the_replay_map(tmp_path: Path) -> None:
         d = visit.decision
         assert text[0].startswith(f"visit {visit.visit_id:04d} -> node {d.node}; ")
         assert ("; known; " if d.known else "; new; ") in text[0]
-        assert f"similarity {d.similarity:.3f}" in text[0]
+        similarity = "-" if d.candidate is None else f"{d.similarity:.3f}"
+        assert f"similarity {similarity};" in text[0]
 
 
 def test_sim_time_is_the_only_timeline(chunks: dict[str, list[Any]]) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from pipemap.cli import main
-from pipemap.cli.folders import load_image_set, read_info
+from pipemap.imagesets import load_image_set, read_info
 from pipemap.localizer import DEFAULT_THRESHOLD, pairwise_matches, wrap_angle_rad
 
 

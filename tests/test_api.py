@@ -1,0 +1,94 @@
+"""The Python API (``pipemap.api``): what a script or notebook does with pipemap."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from pipemap import api
+from pipemap.errors import InputError, LogFormatError
+from pipemap.localizer import PAPER
+from pipemap.recorder import RecordSettings
+
+RECORDINGS = Path(__file__).resolve().parents[1] / "recordings"
+LOG = RECORDINGS / "paper_autonomous.mcap"
+
+
+@pytest.fixture(scope="module")
+def log() -> api.Log:
+    return api.open_log(LOG)
+
+
+def test_a_log_tells_its_run_and_its_visits(log: api.Log) -> None:
+    assert log.metadata["network"] == "paper"
+    assert log.integrity is api.Integrity.OK and log.problem in (None, "")
+    visits = log.visits()
+    assert [v.visit_id for v in visits] == list(range(1, 14))
+    assert all(v.images.count == 6 and v.images.width == 96 for v in visits)
+    assert len(log.sweeps()) >= len(visits)
+    assert [v.end_ns for v in visits] == sorted(v.end_ns for v in visits)
+
+
+def test_replay_takes_a_log_or_a_path_and_gives_the_same_map(log: api.Log) -> None:
+    by_log = api.replay(log).document()
+    by_path = api.replay(str(LOG)).document()
+    assert by_log == by_path
+    assert len(by_log["nodes"]) == 7
+
+
+def test_score_is_what_pipemap_score_stored(log: api.Log) -> None:
+    stored = json.loads((RECORDINGS / "paper_autonomous.score.json").read_text())
+    report = api.score(log)
+    assert report.map_correct is stored["map_correct"] is True
+    assert report.counts() == stored["decisions"]
+
+
+def test_the_config_reaches_the_localizer(log: api.Log) -> None:
+    """The paper's rule keeps no two-view fit: if the config were dropped, it would."""
+    default = api.replay(log).document()["visits"]
+    paper = api.replay(log, PAPER).document()["visits"]
+    assert any(v["rotation_two_view_rad"] is not None for v in default)
+    assert all(v["rotation_two_view_rad"] is None for v in paper)
+
+
+def test_first_visits_have_no_similarity(log: api.Log) -> None:
+    visits = api.replay(log).document()["visits"]
+    assert [v["similarity"] for v in visits[:2]] == [None, None]
+    assert all(v["similarity"] is not None for v in visits if v["candidate"] is not None)
+
+
+def test_map_image_sets(paper_sets: dict[str, object]) -> None:
+    shared = Path(__file__).resolve().parents[2] / "shared" / "paper_imagesets"
+    doc = api.map_image_sets([shared / "1", shared / "4", shared / "2"])
+    assert [v["known"] for v in doc["visits"]] == [False, False, True]
+    assert doc["visits"][2]["node"] == doc["visits"][0]["node"]
+
+
+def test_record_then_score(tmp_path: Path) -> None:
+    path = tmp_path / "run.mcap"
+    result = api.record(path, RecordSettings(network="paper", resolution_px=32, seed=3))
+    assert result.ok and path.is_file()
+    report = api.score(path)  # at 32 px the map may be wrong: a result, not an error
+    assert len(report.visits) == result.visits == len(api.open_log(path).visits())
+    assert report.log == str(path)
+
+
+def test_bad_input_raises_pipemap_errors(tmp_path: Path) -> None:
+    with pytest.raises(LogFormatError, match="missing.mcap"):
+        api.open_log(tmp_path / "missing.mcap")
+    text = tmp_path / "notes.mcap"
+    text.write_text("not a log")
+    with pytest.raises(LogFormatError, match="notes.mcap"):
+        api.open_log(text)
+    with pytest.raises(InputError):
+        api.map_image_sets([])
+    # An existing file is never overwritten without asking, and nothing runs first.
+    existing = tmp_path / "keep.mcap"
+    existing.write_bytes(b"precious")
+    with pytest.raises(InputError, match="exists"):
+        api.record(existing, RecordSettings(network="paper", resolution_px=32))
+    assert existing.read_bytes() == b"precious"
+    with pytest.raises(InputError, match="does not exist"):
+        api.record(tmp_path / "no" / "run.mcap", RecordSettings(network="paper"))
