@@ -25,14 +25,16 @@ from pathlib import Path
 
 import numpy as np
 
-from pipemap.cli.parser import ROBUST_HIGHPASS, ROBUST_ZOOMS
 from pipemap.imagesets import load_image_sets, read_info
 from pipemap.localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
+from pipemap.localizer.presets import ROBUST_HIGHPASS_FRACTION, ROBUST_ZOOMS
 
 CONFIGS = {
     "paper": FastConfig(),
     "zoom+highpass": FastConfig(zooms=(1.15, 1.3), highpass_fraction=0.175),
-    "robust": FastConfig(zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS, baseline=True),
+    "robust": FastConfig(
+        zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS_FRACTION, baseline=True
+    ),
 }
 
 

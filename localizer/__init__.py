@@ -6,52 +6,129 @@ no clock. Its inputs and outputs are the types exported here.
 
 from __future__ import annotations
 
-from pipemap.localizer.fastmatch import (
-    FastConfig,
-    FastMatcher,
-    PreparedSet,
-    pairwise_matches,
-    prepare,
-)
-from pipemap.localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
-from pipemap.localizer.localizer import (
-    DEFAULT_THRESHOLD,
-    PAPER,
-    Decision,
-    Localizer,
-    LocalizerConfig,
-    ProbeKind,
-    ProbeOutcome,
-    ProbeRequest,
-    ProbeSource,
-    best_candidate,
-    probe_plan,
-)
-from pipemap.localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
-from pipemap.localizer.similarity import (
-    PairPeak,
-    SetMatch,
-    best_offset,
-    ncc_same,
-    pair_peak,
-    pinhole_rotation_rad,
-    reference_match,
-    relative_rotation_rad,
-    wrap_angle_rad,
-)
-from pipemap.localizer.topomap import MapEdge, TopoMap
-from pipemap.localizer.twoview import (
-    SweepFeatures,
-    TwoViewConfig,
-    TwoViewFit,
-    fit_two_view,
-    sweep_features,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pipemap.localizer.fastmatch import (
+        FastConfig,
+        FastMatcher,
+        PreparedSet,
+        pairwise_matches,
+        prepare,
+    )
+    from pipemap.localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
+    from pipemap.localizer.localizer import (
+        DEFAULT_THRESHOLD,
+        PAPER,
+        Decision,
+        Localizer,
+        LocalizerConfig,
+        ProbeKind,
+        ProbeOutcome,
+        ProbeRequest,
+        ProbeSource,
+        best_candidate,
+        probe_plan,
+    )
+    from pipemap.localizer.mapjson import (
+        FLOAT_DECIMALS,
+        decision_record,
+        dumps_document,
+        map_document,
+    )
+    from pipemap.localizer.presets import (
+        PAPER_THRESHOLD,
+        ROBUST_HIGHPASS_FRACTION,
+        ROBUST_THRESHOLD,
+        ROBUST_ZOOMS,
+    )
+    from pipemap.localizer.similarity import (
+        PairPeak,
+        SetMatch,
+        best_offset,
+        ncc_same,
+        pair_peak,
+        pinhole_rotation_rad,
+        reference_match,
+        relative_rotation_rad,
+        wrap_angle_rad,
+    )
+    from pipemap.localizer.topomap import MapEdge, TopoMap
+    from pipemap.localizer.twoview import (
+        SweepFeatures,
+        TwoViewConfig,
+        TwoViewFit,
+        fit_two_view,
+        sweep_features,
+    )
+
+#: Where each public name lives. Loaded on first use (PEP 562): the command line
+#: imports :mod:`pipemap.localizer.presets` for its help without paying for numpy,
+#: scipy and OpenCV.
+_EXPORTS = {
+    "PAPER_THRESHOLD": "pipemap.localizer.presets",
+    "ROBUST_HIGHPASS_FRACTION": "pipemap.localizer.presets",
+    "ROBUST_THRESHOLD": "pipemap.localizer.presets",
+    "ROBUST_ZOOMS": "pipemap.localizer.presets",
+    "DEFAULT_FOV_RAD": "pipemap.localizer.imageset",
+    "DEFAULT_KEEP_TOP_FRACTION": "pipemap.localizer.imageset",
+    "DEFAULT_THRESHOLD": "pipemap.localizer.localizer",
+    "Decision": "pipemap.localizer.localizer",
+    "FLOAT_DECIMALS": "pipemap.localizer.mapjson",
+    "FastConfig": "pipemap.localizer.fastmatch",
+    "FastMatcher": "pipemap.localizer.fastmatch",
+    "ImageSet": "pipemap.localizer.imageset",
+    "Localizer": "pipemap.localizer.localizer",
+    "LocalizerConfig": "pipemap.localizer.localizer",
+    "MapEdge": "pipemap.localizer.topomap",
+    "PAPER": "pipemap.localizer.localizer",
+    "PairPeak": "pipemap.localizer.similarity",
+    "PreparedSet": "pipemap.localizer.fastmatch",
+    "ProbeKind": "pipemap.localizer.localizer",
+    "ProbeOutcome": "pipemap.localizer.localizer",
+    "ProbeRequest": "pipemap.localizer.localizer",
+    "ProbeSource": "pipemap.localizer.localizer",
+    "SetMatch": "pipemap.localizer.similarity",
+    "SweepFeatures": "pipemap.localizer.twoview",
+    "TopoMap": "pipemap.localizer.topomap",
+    "TwoViewConfig": "pipemap.localizer.twoview",
+    "TwoViewFit": "pipemap.localizer.twoview",
+    "best_candidate": "pipemap.localizer.localizer",
+    "best_offset": "pipemap.localizer.similarity",
+    "decision_record": "pipemap.localizer.mapjson",
+    "dumps_document": "pipemap.localizer.mapjson",
+    "fit_two_view": "pipemap.localizer.twoview",
+    "map_document": "pipemap.localizer.mapjson",
+    "ncc_same": "pipemap.localizer.similarity",
+    "pair_peak": "pipemap.localizer.similarity",
+    "pairwise_matches": "pipemap.localizer.fastmatch",
+    "pinhole_rotation_rad": "pipemap.localizer.similarity",
+    "prepare": "pipemap.localizer.fastmatch",
+    "probe_plan": "pipemap.localizer.localizer",
+    "reference_match": "pipemap.localizer.similarity",
+    "relative_rotation_rad": "pipemap.localizer.similarity",
+    "sweep_features": "pipemap.localizer.twoview",
+    "wrap_angle_rad": "pipemap.localizer.similarity",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'pipemap.localizer' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "DEFAULT_FOV_RAD",
     "DEFAULT_KEEP_TOP_FRACTION",
     "DEFAULT_THRESHOLD",
+    "PAPER_THRESHOLD",
+    "ROBUST_HIGHPASS_FRACTION",
+    "ROBUST_THRESHOLD",
+    "ROBUST_ZOOMS",
     "FLOAT_DECIMALS",
     "PAPER",
     "Decision",

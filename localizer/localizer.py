@@ -22,6 +22,7 @@ from typing import Protocol
 from pipemap.errors import LocalizerError
 from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
 from pipemap.localizer.twoview import (
@@ -46,8 +47,8 @@ __all__ = [
     "probe_plan",
 ]
 
-#: The paper's known/new threshold on image-set similarity.
-DEFAULT_THRESHOLD = 0.36
+#: The localizer's default threshold: the paper's (see :mod:`.presets`).
+DEFAULT_THRESHOLD = PAPER_THRESHOLD
 
 
 class ProbeKind(enum.Enum):

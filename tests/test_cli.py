@@ -10,6 +10,7 @@ warnings printed by native libraries (OpenCV, libpng, libjpeg) count too.
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
@@ -526,13 +527,11 @@ def test_map_table(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
 
 
 def test_robust_preset_fills_in_its_settings_and_threshold() -> None:
-    from pipemap.cli.parser import (
-        ROBUST_HIGHPASS,
+    from pipemap.cli.parser import apply_presets, build_parser, fast_config
+    from pipemap.localizer.presets import (
+        ROBUST_HIGHPASS_FRACTION,
         ROBUST_THRESHOLD,
         ROBUST_ZOOMS,
-        apply_presets,
-        build_parser,
-        fast_config,
     )
 
     args = build_parser().parse_args(["score", "run.mcap", "--robust"])
@@ -540,7 +539,7 @@ def test_robust_preset_fills_in_its_settings_and_threshold() -> None:
     config = fast_config(args)
     assert (config.zooms, config.highpass_fraction, config.baseline) == (
         ROBUST_ZOOMS,
-        ROBUST_HIGHPASS,
+        ROBUST_HIGHPASS_FRACTION,
         True,
     )
     assert args.threshold == ROBUST_THRESHOLD
@@ -553,3 +552,30 @@ def test_robust_preset_fills_in_its_settings_and_threshold() -> None:
     assert args.threshold == 0.36
     assert fast_config(args).baseline is False
     assert fast_config(args).zooms == ()
+
+
+def test_the_parser_and_its_presets_load_no_heavy_module(tmp_path: Path) -> None:
+    """``pipemap --help`` stays instant: the parser takes the presets it shows from
+    :mod:`pipemap.localizer.presets` without loading numpy, OpenCV or the simulator."""
+    probe = (
+        "import sys\n"
+        "from pipemap.cli.parser import build_parser\n"
+        "build_parser().format_help()\n"
+        "heavy = ('numpy', 'cv2', 'scipy', 'pybullet', 'mcap', 'rerun', 'networkx')\n"
+        "print(sorted(m for m in heavy if m in sys.modules))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], cwd=tmp_path, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
+
+
+def test_threshold_help_says_what_decides_at_the_defaults() -> None:
+    from pipemap.cli.parser import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    for command in ("map", "score", "replay", "record"):
+        text = " ".join(sub.choices[command].format_help().split())
+        assert "two-view check decides" in text, command

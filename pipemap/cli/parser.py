@@ -10,6 +10,12 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from pipemap import __version__
+from pipemap.localizer.presets import (
+    PAPER_THRESHOLD,
+    ROBUST_HIGHPASS_FRACTION,
+    ROBUST_THRESHOLD,
+    ROBUST_ZOOMS,
+)
 
 if TYPE_CHECKING:
     from pipemap.localizer import FastConfig
@@ -73,15 +79,11 @@ def _zooms(text: str) -> tuple[float, ...]:
         ) from None
 
 
-#: The paper's known/new threshold, for its similarity.
-PAPER_THRESHOLD = 0.36
-#: ``--robust``: zoom search, high-pass and baseline, and the threshold that goes with
-#: them (measured with ``benchmarks/eval_similarity.py``; see the README).
-ROBUST_ZOOMS = (1.15, 1.3)
-ROBUST_HIGHPASS = 0.125
-ROBUST_THRESHOLD = 0.062
 _THRESHOLD_HELP = (
-    f"known/new threshold (default {PAPER_THRESHOLD}, or {ROBUST_THRESHOLD} with --robust)"
+    f"similarity threshold (default {PAPER_THRESHOLD}, or {ROBUST_THRESHOLD} with --robust): "
+    "decides known or new with --no-verify or --no-two-view; by default the two-view "
+    "check decides, and the threshold only asks for probes and decides sweeps with too "
+    "few keypoints to check"
 )
 
 
@@ -93,7 +95,7 @@ def apply_presets(args: argparse.Namespace) -> None:
         return
     if args.robust:
         args.zoom = args.zoom or ROBUST_ZOOMS
-        args.highpass = args.highpass or ROBUST_HIGHPASS
+        args.highpass = args.highpass or ROBUST_HIGHPASS_FRACTION
         args.baseline = True
     if args.threshold is None:
         args.threshold = ROBUST_THRESHOLD if args.robust else PAPER_THRESHOLD
@@ -131,7 +133,7 @@ def add_similarity_options(p: argparse.ArgumentParser) -> None:
         "--robust",
         action="store_true",
         help="pipemap's similarity for cameras off the junction centre: --zoom "
-        f"{','.join(map(str, ROBUST_ZOOMS))} --highpass {ROBUST_HIGHPASS} --baseline, "
+        f"{','.join(map(str, ROBUST_ZOOMS))} --highpass {ROBUST_HIGHPASS_FRACTION} --baseline, "
         f"threshold {ROBUST_THRESHOLD} unless --threshold is given",
     )
     p.add_argument(
@@ -139,7 +141,7 @@ def add_similarity_options(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="report similarity above the pair's baseline: how alike each set's own "
         "views 360/N degrees and more apart look (puts imagery of any renderer and "
-        "resolution on one scale; with it, thresholds lie near 0.062)",
+        f"resolution on one scale; with it, thresholds lie near {ROBUST_THRESHOLD})",
     )
 
 
@@ -284,8 +286,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_record.add_argument(
         "--threshold",
         type=_threshold,
-        default=0.36,
-        help="the online localizer's known/new threshold (default 0.36)",
+        default=PAPER_THRESHOLD,
+        help=f"the online localizer's similarity threshold (default {PAPER_THRESHOLD}); "
+        "by default the two-view check decides known or new, and the threshold only asks "
+        "for probes",
     )
     p_record.add_argument("-o", "--output", required=True, metavar="RUN.mcap", help="log file")
     p_record.add_argument("--force", action="store_true", help="overwrite an existing log")
@@ -371,7 +375,10 @@ def build_parser() -> argparse.ArgumentParser:
     p_exp.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
     p_exp.add_argument("--seed", type=_seed, default=0, help="seed of every run (0)")
     p_exp.add_argument(
-        "--threshold", type=_threshold, default=0.36, help="known/new threshold (0.36)"
+        "--threshold",
+        type=_threshold,
+        default=PAPER_THRESHOLD,
+        help=f"similarity threshold (default {PAPER_THRESHOLD}); see record --threshold",
     )
     p_exp.add_argument("--keep-logs", action="store_true", help="keep every run's log in DIR/logs")
     p_exp.add_argument("--force", action="store_true", help="replace earlier results in DIR")
