@@ -24,6 +24,8 @@ import numpy as np
 import pytest
 
 from pipemap.cli import main
+from pipemap.localizer import wrap_angle_rad
+from tests.conftest import PaperSet
 
 ROOT = Path(__file__).resolve().parents[1]
 COUNT = 6
@@ -579,3 +581,23 @@ def test_threshold_help_says_what_decides_at_the_defaults() -> None:
     for command in ("map", "score", "replay", "record"):
         text = " ".join(sub.choices[command].format_help().split())
         assert "two-view check decides" in text, command
+
+
+def test_one_rotation_convention(
+    paper_sets: dict[str, PaperSet], capfd: pytest.CaptureFixture[str]
+) -> None:
+    """docs/conventions.md: a rotation of (A, B) is yaw_B - yaw_A. ``match A B`` names
+    the pair in argument order; a map visit's pair is (this visit, its candidate)."""
+    shared = Path(__file__).resolve().parents[1].parent / "shared" / "paper_imagesets"
+    one, two, four = (str(shared / n) for n in ("1", "2", "4"))
+    pairs = json.loads(run(["match", two, one, "--json"], capfd)[1])["pairs"]
+    visit = json.loads(run(["map", one, four, two, "--json"], capfd)[1])["visits"][2]
+    assert visit["candidate"] == 0 and visit["known"]
+    assert visit["rotation_rad"] == pairs[0]["rotation_rad"]
+    assert visit["rotation_pinhole_rad"] == pairs[0]["rotation_pinhole_rad"]
+    # The other order turns the other way; the truth agrees on the sign.
+    reverse = json.loads(run(["match", one, two, "--json"], capfd)[1])["pairs"][0]
+    assert abs(reverse["rotation_rad"] + pairs[0]["rotation_rad"]) < 0.01
+    # The recorded camera yaws (ground truth) agree on the sign and size.
+    true_turn = wrap_angle_rad(paper_sets["1"].yaw_rad - paper_sets["2"].yaw_rad)
+    assert abs(wrap_angle_rad(visit["rotation_two_view_rad"] - true_turn)) < 0.1
