@@ -77,7 +77,8 @@ def run_match(args: argparse.Namespace, out: TextIO) -> int:
             f"  {pair['image_shift']:11d}  {pair['pixel_shift']:11.1f}"
             f"  {pair['rotation_rad']:12.3f}  {'yes' if pair['same'] else 'no'}\n"
         )
-    out.write(f"threshold {args.threshold}; {len(doc['pairs'])} pairs\n")
+    pairs = len(doc["pairs"])
+    out.write(f"threshold {args.threshold}; {pairs} {'pair' if pairs == 1 else 'pairs'}\n")
     return 0
 
 

@@ -123,6 +123,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 def info_document(path: Path) -> dict[str, Any]:
     """What ``pipemap info --json`` prints."""
     from pipemap.recorder import METADATA_RESULT, METADATA_RUN, Topic, read_log
+    from pipemap.recorder.metadata import typed_metadata
     from pipemap.recorder.schemas import NodeEvent, SweepCommand
 
     contents = read_log(path, keep=lambda topic: topic in (Topic.SWEEP, Topic.NODE))
@@ -132,8 +133,9 @@ def info_document(path: Path) -> dict[str, Any]:
             sweeps += SweepCommand.FromString(m.data).phase == SweepCommand.START
         else:
             visits += NodeEvent.FromString(m.data).kind == NodeEvent.ARRIVAL
-    metadata: dict[str, Any] = dict(contents.metadata.get(METADATA_RUN, {}))
-    metadata["result"] = contents.metadata.get(METADATA_RESULT)
+    metadata = typed_metadata(contents.metadata.get(METADATA_RUN, {}))
+    result = contents.metadata.get(METADATA_RESULT)
+    metadata["result"] = None if result is None else typed_metadata(result)
     return {
         "file": str(path),
         "writer": contents.library,

@@ -146,29 +146,35 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         f"map         {'correct' if doc['map_correct'] else 'WRONG'}: {doc['predicted_nodes']} "
         f"junctions for {doc['true_nodes']} true nodes, {doc['visits']} visits",
         f"decisions   {counts['correct_known']} correct known, {counts['correct_new']} correct "
-        f"new, {counts['false_merge']} false merges, {counts['false_new']} false new",
+        f"new, {_count(counts['false_merge'], 'false merge')}, {counts['false_new']} false new",
         f"similarity  known {_stat(sim['known'])}; unknown {_stat(sim['unknown'])}",
         f"pairs       same junction {_stat(doc['pairs']['same'])}; different "
         f"{_stat(doc['pairs']['different'])}",
         f"rotation    error on correct known visits: mean {_num(rot['mean'])} rad, "
         f"max {_num(rot['max'])} rad (n={rot['n']})",
-        f"latency     mean {_num(doc['latency_ms']['mean'])} ms, "
-        f"max {_num(doc['latency_ms']['max'])} ms per decision",
+        f"latency     mean {_num(doc['latency_ms']['mean'], 1)} ms, "
+        f"max {_num(doc['latency_ms']['max'], 1)} ms per decision",
         "visit  true  node  known  similarity  margin    rotation  error      outcome",
     ]
     for v in doc["per_visit"]:
         lines.append(
             f"{v['visit']}   {v['true_node']:<4}  {v['predicted_node']:<4}  "
-            f"{'yes' if v['known'] else 'no':<5}  {_num(v['similarity']):<10}  "
-            f"{_num(v['margin']):<8}  {_num(v['rotation_rad']):<9}  "
+            f"{'yes' if v['known'] else 'no':<5}  {_num(v['similarity'], 3):<10}  "
+            f"{_num(v['margin'], 3):<8}  {_num(v['rotation_rad']):<9}  "
             f"{_num(v['rotation_error_rad']):<9}  {v['outcome']}"
         )
     out.write("\n".join(lines) + "\n")
     return 0
 
 
-def _num(value: float | None) -> str:
-    return "-" if value is None else f"{value:.4f}"
+def _num(value: float | None, decimals: int = 4) -> str:
+    """A number as the text outputs print it: similarities and margins to 3
+    decimals, radians to 4, milliseconds to 1; ``-`` for none."""
+    return "-" if value is None else f"{value:.{decimals}f}"
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
 def _stat(summary: dict[str, Any]) -> str:

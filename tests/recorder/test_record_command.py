@@ -90,8 +90,14 @@ def test_info_describes_the_log(recorded_run: Path) -> None:
     assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)
     assert doc["integrity"] == "ok" and doc["sweeps"] == 13 and doc["visits"] == 13
-    assert doc["metadata"]["network"] == "paper" and doc["metadata"]["seed"] == "3"
-    assert doc["metadata"]["result"]["status"] == "finished"
+    meta = doc["metadata"]
+    assert meta["network"] == "paper" and meta["seed"] == 3  # numbers as numbers
+    assert meta["resolution_px"] == 32 and meta["align_sweeps"] is True
+    assert isinstance(meta["threshold"], float) and isinstance(meta["simulator"], dict)
+    result = meta["result"]
+    assert result["status"] == "finished"
+    assert result["sweeps"] == doc["sweeps"] and result["visits"] == doc["visits"]
+    assert isinstance(result["distance_m"], float) and isinstance(result["duration_ns"], int)
     topics = {c["topic"]: c for c in doc["channels"]}
     assert topics[Topic.IMAGE]["schema"] == "foxglove.CompressedImage"
     assert topics[Topic.IMAGE]["count"] == 78

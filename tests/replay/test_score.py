@@ -76,8 +76,27 @@ def test_a_wrong_map_is_a_result_not_an_error(recorded_run: Path) -> None:
         "false_merge": 11,
         "false_new": 0,
     }
-    text = pipemap("score", str(recorded_run), "--threshold", "-1", "--no-verify")
+    text = pipemap("score", str(recorded_run), *paper)
     assert text.returncode == 0 and "WRONG" in text.stdout
+    assert ", 11 false merges, 0 false new" in text.stdout
+
+
+def test_score_text_formats(recorded_run: Path) -> None:
+    """One merge is a merge; milliseconds to 0.1, similarities to 0.001, radians to 1e-4."""
+    import re
+
+    text = pipemap("score", str(recorded_run), "--threshold", "0.1", "--no-verify").stdout
+    doc = json.loads(
+        pipemap("score", str(recorded_run), "--threshold", "0.1", "--no-verify", "--json").stdout
+    )
+    merges = doc["decisions"]["false_merge"]
+    assert f", {merges} false merge{'' if merges == 1 else 's'}," in text
+    assert re.search(r"latency     mean \d+\.\d ms, max \d+\.\d ms per decision", text)
+    rows = [line.split() for line in text.splitlines() if line.startswith("0001")]
+    assert rows and rows[0][4:6] == ["-", "-"]  # the first visit compared with nothing
+    second_known = next(v for v in doc["per_visit"] if v["similarity"] is not None)
+    row = next(line.split() for line in text.splitlines() if line.startswith(second_known["visit"]))
+    assert row[4] == f"{second_known['similarity']:.3f}"
 
 
 def test_score_needs_the_truth(recorded_run: Path, tmp_path: Path) -> None:

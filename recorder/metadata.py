@@ -1,0 +1,50 @@
+"""The types of the log's metadata values.
+
+MCAP metadata maps strings to strings, so the ``pipemap.run`` and ``pipemap.result``
+records hold every number as text. Readers that hand metadata on (``pipemap info
+--json``, the Python API) turn them back into numbers with :func:`typed_metadata`,
+by name, so that a value that does not parse stays visible as the text it is.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping
+from typing import Any
+
+__all__ = ["METADATA_TYPES", "typed_metadata"]
+
+
+def _bool(text: str) -> bool:
+    if text not in ("true", "false"):
+        raise ValueError(text)
+    return text == "true"
+
+
+#: How each known key of ``pipemap.run`` and ``pipemap.result`` is parsed.
+METADATA_TYPES: dict[str, Callable[[str], Any]] = {
+    "seed": int,
+    "resolution_px": int,
+    "images_per_sweep": int,
+    "fov_rad": float,
+    "align_sweeps": _bool,
+    "threshold": float,
+    "simulator": json.loads,
+    "sweeps": int,
+    "visits": int,
+    "distance_m": float,
+    "duration_ns": int,
+}
+
+
+def typed_metadata(record: Mapping[str, str]) -> dict[str, Any]:
+    """``record`` with every known key's value parsed to its type; other keys, and
+    values that do not parse, stay the strings they are."""
+    typed: dict[str, Any] = {}
+    for key, text in record.items():
+        parse = METADATA_TYPES.get(key)
+        try:
+            typed[key] = text if parse is None else parse(text)
+        except ValueError:
+            typed[key] = text
+    return typed

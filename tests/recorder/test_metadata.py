@@ -1,0 +1,31 @@
+"""Metadata values back to their types (MCAP metadata holds strings only)."""
+
+from __future__ import annotations
+
+from pipemap.recorder.metadata import typed_metadata
+
+
+def test_known_keys_parse_and_the_rest_stay_text() -> None:
+    record = {
+        "network": "grid:3x3",
+        "seed": "7",
+        "threshold": "0.36",
+        "align_sweeps": "false",
+        "simulator": '{"camera": {"fov_rad": 1.4}}',
+        "status": "finished",
+        "sweeps": "13",
+    }
+    assert typed_metadata(record) == {
+        "network": "grid:3x3",
+        "seed": 7,
+        "threshold": 0.36,
+        "align_sweeps": False,
+        "simulator": {"camera": {"fov_rad": 1.4}},
+        "status": "finished",
+        "sweeps": 13,
+    }
+
+
+def test_a_value_that_does_not_parse_stays_visible() -> None:
+    record = {"seed": "seven", "align_sweeps": "yes", "simulator": "{broken"}
+    assert typed_metadata(record) == record
