@@ -601,3 +601,17 @@ def test_one_rotation_convention(
     # The recorded camera yaws (ground truth) agree on the sign and size.
     true_turn = wrap_angle_rad(paper_sets["1"].yaw_rad - paper_sets["2"].yaw_rad)
     assert abs(wrap_angle_rad(visit["rotation_two_view_rad"] - true_turn)) < 0.1
+
+
+def test_every_command_has_a_runner_and_every_runner_a_command() -> None:
+    import importlib
+
+    from pipemap.cli.app import COMMANDS
+    from pipemap.cli.parser import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert sorted(COMMANDS) == sorted(sub.choices)
+    for command, target in COMMANDS.items():
+        module, function = target.split(":")
+        assert callable(getattr(importlib.import_module(module), function)), command

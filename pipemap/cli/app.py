@@ -8,14 +8,35 @@ dependencies lazily so that ``pipemap --help`` is instant.
 
 from __future__ import annotations
 
+import argparse
+import importlib
 import logging
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import TextIO
 
 from pipemap.cli.parser import apply_presets, build_parser
 from pipemap.errors import PipemapError
 
 __all__ = ["main"]
+
+
+#: A command's runner: parsed arguments, standard output, standard error -> exit status.
+Runner = Callable[[argparse.Namespace, TextIO, TextIO], int]
+
+#: Each command and the function that runs it, as ``module:function``. The module
+#: is imported only when its command runs, so that ``pipemap --help`` loads none.
+COMMANDS: dict[str, str] = {
+    "match": "pipemap.cli.folder_commands:run_match",
+    "map": "pipemap.cli.folder_commands:run_map",
+    "sim": "pipemap.cli.sim_command:run_sim",
+    "record": "pipemap.cli.log_commands:run_record",
+    "info": "pipemap.cli.log_commands:run_info",
+    "replay": "pipemap.cli.replay_commands:run_replay",
+    "score": "pipemap.cli.replay_commands:run_score",
+    "experiment": "pipemap.cli.experiment_command:run_experiment",
+    "view": "pipemap.cli.view_command:run_view",
+}
 
 
 def _run(argv: Sequence[str] | None) -> int:
@@ -26,36 +47,9 @@ def _run(argv: Sequence[str] | None) -> int:
         format="pipemap: %(levelname)s: %(message)s",
         stream=sys.stderr,
     )
-    if args.command in ("match", "map"):
-        from pipemap.cli import folder_commands
-
-        runner = folder_commands.run_match if args.command == "match" else folder_commands.run_map
-        return runner(args, sys.stdout)
-    if args.command == "sim":
-        from pipemap.cli.sim_command import run_sim
-
-        return run_sim(args, sys.stdout)
-    if args.command in ("record", "info"):
-        from pipemap.cli import log_commands
-
-        if args.command == "record":
-            return log_commands.run_record(args, sys.stdout, sys.stderr)
-        return log_commands.run_info(args, sys.stdout)
-    if args.command in ("replay", "score"):
-        from pipemap.cli import replay_commands
-
-        if args.command == "replay":
-            return replay_commands.run_replay(args, sys.stdout, sys.stderr)
-        return replay_commands.run_score(args, sys.stdout, sys.stderr)
-    if args.command == "experiment":
-        from pipemap.cli.experiment_command import run_experiment
-
-        return run_experiment(args, sys.stdout, sys.stderr)
-    if args.command == "view":
-        from pipemap.cli.view_command import run_view
-
-        return run_view(args, sys.stdout, sys.stderr)
-    raise AssertionError(f"unhandled command {args.command}")  # the parser allows no other
+    module, function = COMMANDS[args.command].split(":")
+    runner: Runner = getattr(importlib.import_module(module), function)
+    return runner(args, sys.stdout, sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

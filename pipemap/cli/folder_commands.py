@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import Any, TextIO
 
 from pipemap import api
@@ -51,7 +52,7 @@ def match_document(
     }
 
 
-def run_match(args: argparse.Namespace, out: TextIO) -> int:
+def run_match(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Load the folders, match every pair, print a table or JSON."""
     sets = _load(args)
     if args.reference:
@@ -92,7 +93,7 @@ def _rotation(visit: dict[str, Any]) -> str:
     return "-" if rotation is None else f"{rotation:+.4f}"
 
 
-def run_map(args: argparse.Namespace, out: TextIO) -> int:
+def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     two_view, verify = two_view_settings(args)
     config = LocalizerConfig(

@@ -153,7 +153,7 @@ def info_document(path: Path) -> dict[str, Any]:
     }
 
 
-def run_info(args: argparse.Namespace, out: TextIO) -> int:
+def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Describe a log; exit 0 if it is whole or cut short, 1 if it is damaged."""
     doc = info_document(Path(args.log))
     if args.json:

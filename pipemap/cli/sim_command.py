@@ -12,6 +12,7 @@ themselves).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import TextIO
 
@@ -41,7 +42,7 @@ def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float):  # t
     return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
 
 
-def run_sim(args: argparse.Namespace, out: TextIO) -> int:
+def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, build the world, run the episode, write the sweeps, print a summary."""
     from pipemap.sim.episode import Condition, Episode, SimConfig
     from pipemap.sim.network import build_network
