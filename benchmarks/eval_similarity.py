@@ -26,13 +26,15 @@ from pathlib import Path
 import numpy as np
 
 from pipemap.cli.folders import load_image_sets, read_info
-from pipemap.cli.parser import ROBUST_HIGHPASS, ROBUST_ZOOMS
+from pipemap.cli.parser import ROBUST_FAST, ROBUST_HIGHPASS, ROBUST_ZOOMS
 from pipemap.localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
 
 CONFIGS = {
     "paper": FastConfig(),
     "zoom+highpass": FastConfig(zooms=(1.15, 1.3), highpass_fraction=0.175),
-    "robust": FastConfig(zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS, baseline=True),
+    "robust": FastConfig(
+        zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS, baseline=True, **ROBUST_FAST
+    ),
 }
 
 

@@ -29,11 +29,13 @@ from pipemap.localizer.localizer import (
 )
 from pipemap.localizer.mapjson import FLOAT_DECIMALS, decision_record, dumps_document, map_document
 from pipemap.localizer.similarity import (
+    PAPER_SCALE,
     PairPeak,
     SetMatch,
     best_offset,
     ncc_same,
     pair_peak,
+    paper_scaled,
     pinhole_rotation_rad,
     reference_match,
     relative_rotation_rad,
@@ -54,6 +56,7 @@ __all__ = [
     "DEFAULT_THRESHOLD",
     "FLOAT_DECIMALS",
     "PAPER",
+    "PAPER_SCALE",
     "Decision",
     "FastConfig",
     "FastMatcher",
@@ -80,6 +83,7 @@ __all__ = [
     "map_document",
     "ncc_same",
     "pair_peak",
+    "paper_scaled",
     "pinhole_rotation_rad",
     "pairwise_matches",
     "prepare",

@@ -13,14 +13,13 @@ stages, both validated against the reference on the paper's own image sets
    a multiplication by precomputed inverse window norms. Cheap, biased, good
    enough to rank: it never decides (see :func:`localizer.localizer.best_candidate`).
 2. **Refine** the ``refine_candidates`` best junctions: the best at its
-   ``refine_offsets`` most promising cyclic offsets, the others (which only set the
-   margin) at their ``runner_up_offsets`` best. Images are decimated, columns by
-   ``fine_downsample`` and rows by ``fine_row_downsample`` (plain subsampling: area
-   averaging removes uncorrelated pixel noise and raised NCC by about 0.02 on the
-   paper's images; subsampling keeps the reference's statistics; rotation lives in
-   the columns, so rows can be sparser). The full "same" range of vertical and
-   horizontal shifts is searched by 2-D FFT, and a parabola through the peak's
-   neighbours gives a sub-pixel column shift. Views of one junction from different
+   ``refine_offsets`` most promising cyclic offsets (all of them by default), the others (which only set the
+   margin) at their ``runner_up_offsets`` best. Images are at the paper's quarter
+   scale (``fine_downsample``, :func:`localizer.similarity.paper_scaled`, the very
+   pixels the reference sees), the full "same" range of vertical and horizontal
+   shifts is searched by 2-D FFT, so the peak value is the reference's up to float32
+   rounding; a parabola through the peak's neighbours gives a sub-pixel column shift
+   (the reference reports whole pixels). Views of one junction from different
    entries differ by tens of pixels vertically (robot pitch and roll turn with the
    camera), so the accurate stage must not restrict the vertical search.
 
@@ -40,7 +39,13 @@ import numpy as np
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.similarity import SetMatch, best_offset, sums_from_integral, wrap_angle_rad
+from pipemap.localizer.similarity import (
+    SetMatch,
+    best_offset,
+    paper_scaled,
+    sums_from_integral,
+    wrap_angle_rad,
+)
 
 __all__ = ["FastConfig", "FastMatcher", "FineSpectra", "PreparedSet", "pairwise_matches", "prepare"]
 
@@ -52,10 +57,13 @@ class FastConfig:
     coarse_downsample: int = 16
     coarse_row_downsample: int = 16
     coarse_dy_px: int = 0
+    #: The refinement's scale: the paper's quarter (see
+    #: :func:`localizer.similarity.paper_scaled`).
     fine_downsample: int = 4
-    fine_row_downsample: int = 6
     refine_candidates: int = 2
-    refine_offsets: int = 2
+    #: Offsets refined for the best junction: every one (up to 360) by default, so
+    #: that its similarity is the reference's, which is cheap at the quarter scale.
+    refine_offsets: int = 360
     runner_up_offsets: int = 1
     #: Zoom-in factors (> 1) also tried in the refinement, on either set of a pair;
     #: empty for the paper's algorithm. See :func:`_zoomed`.
@@ -64,6 +72,10 @@ class FastConfig:
     #: image width, before anything else; 0 for the paper's algorithm. See
     #: :func:`_high_passed`.
     highpass_fraction: float = 0.0
+    #: Refine at the paper's quarter scale (area averaging, the reference's pixels).
+    #: False: plain decimation, columns by ``fine_downsample`` and rows by 6, the
+    #: resampling pipemap's ``--robust`` similarity was tuned with before issue 17.
+    paper_resampling: bool = True
     #: Report each pair's similarity above its baseline: the mean of the two sets'
     #: :attr:`PreparedSet.baseline`. See :func:`_baseline`.
     baseline: bool = False
@@ -73,7 +85,6 @@ class FastConfig:
             "coarse_downsample",
             "coarse_row_downsample",
             "fine_downsample",
-            "fine_row_downsample",
             "refine_candidates",
             "refine_offsets",
             "runner_up_offsets",
@@ -129,10 +140,13 @@ def _area_downsampled(images: np.ndarray, row_factor: int, col_factor: int) -> n
     return out
 
 
-def _decimated(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarray:
-    rows = max(1, min(row_factor, images.shape[1] // 2))
-    cols = max(1, min(col_factor, images.shape[2] // 2))
-    return np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float32)
+def _fine_scaled(images: np.ndarray, config: FastConfig) -> np.ndarray:
+    """The refinement's images: the paper's quarter scale, or plain decimation."""
+    if config.paper_resampling:
+        return paper_scaled(images, config.fine_downsample)
+    rows = max(1, min(6, images.shape[1] // 2))
+    cols = max(1, min(config.fine_downsample, images.shape[2] // 2))
+    return np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float64)
 
 
 def _high_passed(image_set: ImageSet, sigma_px: float) -> ImageSet:
@@ -224,17 +238,9 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
         image_rows=np.ascontiguousarray(spectra.transpose(2, 1, 0), np.complex64),
         inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
-        fine=_fine_spectra(
-            _decimated(cropped, config.fine_row_downsample, config.fine_downsample),
-            image_set.width,
-        ),
+        fine=_fine_spectra(_fine_scaled(cropped, config), image_set.width),
         zoomed=tuple(
-            _fine_spectra(
-                _decimated(
-                    _zoomed(image_set, zoom), config.fine_row_downsample, config.fine_downsample
-                ),
-                image_set.width,
-            )
+            _fine_spectra(_fine_scaled(_zoomed(image_set, zoom), config), image_set.width)
             for zoom in config.zooms
         ),
     )
@@ -264,7 +270,7 @@ _SHAPE_FIELDS = (
     "coarse_row_downsample",
     "coarse_dy_px",
     "fine_downsample",
-    "fine_row_downsample",
+    "paper_resampling",
 )
 
 

@@ -80,6 +80,9 @@ PAPER_THRESHOLD = 0.36
 ROBUST_ZOOMS = (1.15, 1.3)
 ROBUST_HIGHPASS = 0.125
 ROBUST_THRESHOLD = 0.062
+#: What ``--robust`` keeps of the refinement it was tuned with (before the fast path
+#: took the paper's quarter scale and every offset): plain decimation, two offsets.
+ROBUST_FAST: dict[str, Any] = {"paper_resampling": False, "refine_offsets": 2}
 _THRESHOLD_HELP = (
     f"known/new threshold (default {PAPER_THRESHOLD}, or {ROBUST_THRESHOLD} with --robust)"
 )
@@ -153,6 +156,7 @@ def fast_config(args: argparse.Namespace) -> FastConfig:
         zooms=args.zoom,
         highpass_fraction=args.highpass,
         baseline=args.baseline,
+        **(ROBUST_FAST if args.robust else {}),
     )
 
 

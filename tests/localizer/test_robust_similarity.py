@@ -137,10 +137,12 @@ def test_robust_preset_separates_every_paper_pair_at_its_threshold(
     # --robust's threshold was chosen on simulated runs of our own renderer (see
     # benchmarks/eval_similarity.py); the paper's Gazebo images at 800 px fall on the
     # same scale. Measured: same pairs >= 0.133, different pairs <= 0.0601.
-    from pipemap.cli.parser import ROBUST_HIGHPASS, ROBUST_THRESHOLD, ROBUST_ZOOMS
+    from pipemap.cli.parser import ROBUST_FAST, ROBUST_HIGHPASS, ROBUST_THRESHOLD, ROBUST_ZOOMS
 
     names = sorted(paper_sets)
-    config = FastConfig(zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS, baseline=True)
+    config = FastConfig(
+        zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS, baseline=True, **ROBUST_FAST
+    )
     matches = pairwise_matches([paper_sets[n].images for n in names], config)
     for (i, j), match in matches.items():
         same = paper_sets[names[i]].same_junction(paper_sets[names[j]])
