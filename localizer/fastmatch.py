@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 
 import cv2
@@ -103,6 +104,41 @@ class FastConfig:
 
 
 @dataclass(frozen=True, eq=False)
+class Compact:
+    """Images stored in as few bytes as give them back exactly.
+
+    A quarter-scale pixel of 8-bit images is a mean of 16 integers: ``scale`` times it
+    is an integer below 65536, kept as uint16 (2 bytes a pixel instead of 8). Other
+    images (not integer-valued, or not an exact box mean) are kept as float64.
+    """
+
+    values: np.ndarray
+    scale: float
+
+    @classmethod
+    def of(cls, images: np.ndarray, scale: float) -> Compact:
+        """The compact form of ``images`` (float64), exact or not compacted at all."""
+        scaled = images * scale
+        rounded = np.rint(scaled)
+        if (
+            images.size
+            and float(rounded.min()) >= 0.0
+            and float(rounded.max()) < 65536.0
+            and np.array_equal(scaled, rounded)
+            and np.array_equal(rounded / scale, images)
+        ):
+            return cls(rounded.astype(np.uint16), scale)
+        return cls(np.asarray(images, dtype=np.float64), 1.0)
+
+    def images(self) -> np.ndarray:
+        """The images, exactly as given to :meth:`of`."""
+        if self.scale == 1.0:
+            return np.asarray(self.values, dtype=np.float64)
+        out: np.ndarray = self.values.astype(np.float64) / self.scale
+        return out
+
+
+@dataclass(frozen=True, eq=False)
 class PreparedSet:
     """What the fast path keeps of one image set; built by :func:`prepare`."""
 
@@ -121,8 +157,11 @@ class PreparedSet:
     #: Screening: 1 / sqrt(local variance sum) of each searched image per (dy, dx),
     #: (D, N, Wc); 0 where the window is flat.
     inv_window_norm: np.ndarray
-    #: Refinement: spectra and norms of the decimated images.
-    fine: FineSpectra
+    #: Refinement: spectra and norms of the quarter-scale images (``None`` once the
+    #: set is in a :class:`FastMatcher`, which keeps ``fine_images`` instead).
+    fine: FineSpectra | None
+    #: Refinement: the quarter-scale images themselves, compactly (see :class:`Compact`).
+    fine_images: Compact | None = None
     #: Refinement: the same of the images zoomed in by each of ``FastConfig.zooms``.
     zoomed: tuple[FineSpectra, ...] = ()
     #: How alike unrelated views of this imagery look (0.0 unless ``FastConfig.baseline``).
@@ -213,6 +252,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     if config.highpass_fraction > 0.0:
         image_set = _high_passed(image_set, config.highpass_fraction * image_set.width)
     cropped = image_set.cropped()
+    fine_images = _fine_scaled(cropped, config)
     small = _area_downsampled(cropped, config.coarse_row_downsample, config.coarse_downsample)
     n, rows, wd = small.shape
     zero_mean = small - small.mean(axis=(1, 2), keepdims=True)
@@ -238,7 +278,8 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
         image_rows=np.ascontiguousarray(spectra.transpose(2, 1, 0), np.complex64),
         inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
-        fine=_fine_spectra(_fine_scaled(cropped, config), image_set.width),
+        fine=_fine_spectra(fine_images, image_set.width),
+        fine_images=Compact.of(fine_images, float(config.fine_downsample) ** 2),
         zoomed=tuple(
             _fine_spectra(_fine_scaled(_zoomed(image_set, zoom), config), image_set.width)
             for zoom in config.zooms
@@ -432,6 +473,11 @@ def _fine_peaks(
     return np.clip(value, -1.0, 1.0).reshape(shape), (column - width // 2).reshape(shape)
 
 
+def _fine(prepared: PreparedSet) -> FineSpectra:
+    assert prepared.fine is not None, "a database's set: use FastMatcher._refinable"
+    return prepared.fine
+
+
 def _zoomed_peaks(
     query: PreparedSet, blocks: list[tuple[PreparedSet, int]]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -442,11 +488,11 @@ def _zoomed_peaks(
     nearer to, or farther from, the wall it faces), and keeps the highest peak and
     that peak's column shift.
     """
-    values, columns = _fine_peaks(query.fine, [(known.fine, k) for known, k in blocks])
+    values, columns = _fine_peaks(_fine(query), [(_fine(known), k) for known, k in blocks])
     for z, zoomed in enumerate(query.zoomed):
         for trial in (
-            _fine_peaks(zoomed, [(known.fine, k) for known, k in blocks]),
-            _fine_peaks(query.fine, [(known.zoomed[z], k) for known, k in blocks]),
+            _fine_peaks(zoomed, [(_fine(known), k) for known, k in blocks]),
+            _fine_peaks(_fine(query), [(known.zoomed[z], k) for known, k in blocks]),
         ):
             better = trial[0] > values
             values = np.where(better, trial[0], values)
@@ -475,6 +521,8 @@ class FastMatcher:
         self._sets: list[PreparedSet] = []
         self._image_rows: np.ndarray | None = None  # (F, R, N*M), grown by add()
         self._inv_window_norm: np.ndarray | None = None  # (D, N*M, Wc)
+        #: Refinement spectra of the last few refined known sets, rebuilt on demand.
+        self._fine_cache: OrderedDict[int, PreparedSet] = OrderedDict()
 
     def __len__(self) -> int:
         return len(self._sets)
@@ -511,8 +559,37 @@ class FastMatcher:
             self._inv_window_norm = _grown(self._inv_window_norm, axis=1)
         self._image_rows[:, :, used : used + n] = prepared.image_rows
         self._inv_window_norm[:, used : used + n, :] = prepared.inv_window_norm
-        self._sets.append(prepared)
+        self._sets.append(_kept(prepared))
         return len(self._sets) - 1
+
+    def kept_bytes(self) -> int:
+        """Memory the database holds for its known sets (screening arrays as used,
+        the compact refinement images, and any zoomed spectra)."""
+        arrays = self._screening_arrays()
+        total = 0 if arrays is None else sum(a.nbytes for a in arrays)
+        for known in self._sets:
+            if known.fine_images is not None:
+                total += known.fine_images.values.nbytes
+            total += sum(z.spectrum.nbytes + z.inv_window_norm.nbytes for z in known.zoomed)
+        return total
+
+    def _refinable(self, i: int) -> PreparedSet:
+        """Known set ``i`` with its refinement spectra, from a small cache (they cost
+        ten times the compact images to keep, and a few ms to rebuild)."""
+        cached = self._fine_cache.get(i)
+        if cached is not None:
+            self._fine_cache.move_to_end(i)
+            return cached
+        known = self._sets[i]
+        if known.fine is None:
+            assert known.fine_images is not None
+            known = replace(
+                known, fine=_fine_spectra(known.fine_images.images(), known.width_px)
+            )
+        self._fine_cache[i] = known
+        if len(self._fine_cache) > _FINE_CACHE:
+            self._fine_cache.popitem(last=False)
+        return known
 
     def _screening_arrays(self) -> tuple[np.ndarray, np.ndarray] | None:
         if self._image_rows is None or self._inv_window_norm is None:
@@ -599,14 +676,15 @@ class FastMatcher:
             ]
         ]
         if blocks:
-            values, columns = _zoomed_peaks(query, [(self._sets[i], k) for i, k in blocks])
+            values, columns = _zoomed_peaks(query, [(self._refinable(i), k) for i, k in blocks])
         j = np.arange(n)
         for i in order[: self.config.refine_candidates]:
             peak_ncc = np.full((n, n), -np.inf)
             peak_dx = np.zeros((n, n))
             for b, (owner, k) in enumerate(blocks):
                 if owner == i:
-                    fine = self._sets[i].fine
+                    fine = self._refinable(i).fine
+                    assert fine is not None
                     peak_ncc[j, (j + k) % n] = values[b]
                     peak_dx[j, (j + k) % n] = columns[b] * (fine.full_width_px / fine.width)
             refined = best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
@@ -616,6 +694,24 @@ class FastMatcher:
             m.turned(query.camera_angle_rad - known.camera_angle_rad)
             for m, known in zip(matches, self._sets, strict=True)
         ]
+
+
+#: Known sets whose refinement spectra a matcher keeps at hand.
+_FINE_CACHE = 8
+
+
+def _kept(prepared: PreparedSet) -> PreparedSet:
+    """What a database keeps of a set: no query-side screening rows (the matcher's
+    arrays hold its searched rows), no spectra when the compact images can rebuild them."""
+    empty = np.zeros((0,), dtype=np.complex64)
+    rebuildable = prepared.fine_images is not None
+    return replace(
+        prepared,
+        template_rows=empty,
+        image_rows=empty,
+        inv_window_norm=np.zeros((0,), dtype=np.float32),
+        fine=None if rebuildable else prepared.fine,
+    )
 
 
 def _screened_matches(
