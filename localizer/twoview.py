@@ -285,6 +285,18 @@ def _matches(a: SweepFeatures, b: SweepFeatures, ratio: float) -> tuple[np.ndarr
     return ia, ib
 
 
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row-wise ``u x v`` of two ``(M, 3)`` arrays: ``np.cross``'s arithmetic without
+    its axis handling, which cost more than the products on a few hundred rows."""
+    u0, u1, u2 = u[:, 0], u[:, 1], u[:, 2]
+    v0, v1, v2 = v[:, 0], v[:, 1], v[:, 2]
+    out = np.empty((len(u), 3), dtype=np.result_type(u, v))
+    out[:, 0] = u1 * v2 - u2 * v1
+    out[:, 1] = u2 * v0 - u0 * v2
+    out[:, 2] = u0 * v1 - u1 * v0
+    return out
+
+
 def _turned(bearings: np.ndarray, angle_rad: float) -> np.ndarray:
     c, s = math.cos(angle_rad), math.sin(angle_rad)
     x, y = bearings[:, 0], bearings[:, 1]
@@ -295,7 +307,7 @@ def _residuals(
     a: np.ndarray, b: np.ndarray, rotation_rad: float, direction_rad: float
 ) -> np.ndarray:
     """``a . (t x R b)`` for the unit horizontal ``t`` at ``direction_rad``."""
-    normal = np.cross(_turned(b, rotation_rad), a)  # t . (Rb x a) = a . (t x Rb)
+    normal = _cross(_turned(b, rotation_rad), a)  # t . (Rb x a) = a . (t x Rb)
     return math.cos(direction_rad) * normal[:, 0] + math.sin(direction_rad) * normal[:, 1]
 
 
@@ -309,7 +321,7 @@ def _direction_counts(
 ) -> np.ndarray:
     """For each direction of motion (``cos_d``, ``sin_d``: shape ``(D, 1)``), how many
     matched bearings fit the planar motion with ``rotation_rad`` within ``tolerance``."""
-    normal = np.cross(_turned(b, rotation_rad), a)
+    normal = _cross(_turned(b, rotation_rad), a)
     counts: np.ndarray = (np.abs(cos_d * normal[:, 0] + sin_d * normal[:, 1]) < tolerance).sum(
         axis=1
     )
@@ -458,7 +470,7 @@ def _tilted_residuals(a: np.ndarray, b: np.ndarray, params: np.ndarray) -> np.nd
             math.sin(elevation),
         ]
     )
-    normal: np.ndarray = np.cross(b @ _tilt_matrix(params).T, a) @ t
+    normal: np.ndarray = _cross(b @ _tilt_matrix(params).T, a) @ t
     return normal
 
 
