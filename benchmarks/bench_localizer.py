@@ -244,7 +244,7 @@ def main() -> int:
         info,
     )
     _agreement(
-        f"all {len(ref)} pairs, `pipemap match` and the localizer (2 best offsets refined)",
+        f"all {len(ref)} pairs, `pipemap match` and the localizer (best junction refined at every offset)",
         {k: match_prepared(*k) for k in ref},
         ref,
         info,
@@ -287,17 +287,11 @@ def main() -> int:
             f"match {statistics.median(matches) * 1000:6.1f}; max {max(totals) * 1000:6.1f})"
         )
 
-    kept = sum(
-        arr.nbytes
-        for arr in (
-            prepared[names[0]].template_rows,
-            prepared[names[0]].image_rows,
-            prepared[names[0]].inv_window_norm,
-            prepared[names[0]].fine.spectrum,
-            prepared[names[0]].fine.inv_window_norm,
-        )
-    )
-    print(f"\n## Memory: {kept / 2**20:.2f} MiB kept per known junction")
+    held = FastMatcher(config)
+    for n in names:
+        held.add(prepared[n])
+    kept = held.kept_bytes() / len(names)
+    print(f"\n## Memory: {kept / 2**10:.1f} KiB of similarity data kept per known junction")
 
     # 4: the CLI end to end on 25 sets written to disk (11 shared + 14 augmented).
     with tempfile.TemporaryDirectory() as tmp:
