@@ -27,13 +27,16 @@ import numpy as np
 
 from pipemap.imagesets import load_image_sets, read_info
 from pipemap.localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
-from pipemap.localizer.presets import ROBUST_HIGHPASS_FRACTION, ROBUST_ZOOMS
+from pipemap.localizer.presets import ROBUST_FAST, ROBUST_HIGHPASS_FRACTION, ROBUST_ZOOMS
 
 CONFIGS = {
     "paper": FastConfig(),
     "zoom+highpass": FastConfig(zooms=(1.15, 1.3), highpass_fraction=0.175),
     "robust": FastConfig(
-        zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS_FRACTION, baseline=True
+        zooms=ROBUST_ZOOMS,
+        highpass_fraction=ROBUST_HIGHPASS_FRACTION,
+        baseline=True,
+        **ROBUST_FAST,
     ),
 }
 

@@ -13,14 +13,13 @@ stages, both validated against the reference on the paper's own image sets
    a multiplication by precomputed inverse window norms. Cheap, biased, good
    enough to rank: it never decides (see :func:`localizer.localizer.best_candidate`).
 2. **Refine** the ``refine_candidates`` best junctions: the best at its
-   ``refine_offsets`` most promising cyclic offsets, the others (which only set the
-   margin) at their ``runner_up_offsets`` best. Images are decimated, columns by
-   ``fine_downsample`` and rows by ``fine_row_downsample`` (plain subsampling: area
-   averaging removes uncorrelated pixel noise and raised NCC by about 0.02 on the
-   paper's images; subsampling keeps the reference's statistics; rotation lives in
-   the columns, so rows can be sparser). The full "same" range of vertical and
-   horizontal shifts is searched by 2-D FFT, and a parabola through the peak's
-   neighbours gives a sub-pixel column shift. Views of one junction from different
+   ``refine_offsets`` most promising cyclic offsets (all of them by default), the others (which only set the
+   margin) at their ``runner_up_offsets`` best. Images are at the paper's quarter
+   scale (``fine_downsample``, :func:`localizer.similarity.paper_scaled`, the very
+   pixels the reference sees), the full "same" range of vertical and horizontal
+   shifts is searched by 2-D FFT, so the peak value is the reference's up to float32
+   rounding; a parabola through the peak's neighbours gives a sub-pixel column shift
+   (the reference reports whole pixels). Views of one junction from different
    entries differ by tens of pixels vertically (robot pitch and roll turn with the
    camera), so the accurate stage must not restrict the vertical search.
 
@@ -33,6 +32,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 
 import cv2
@@ -40,7 +40,13 @@ import numpy as np
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.similarity import SetMatch, best_offset, sums_from_integral, wrap_angle_rad
+from pipemap.localizer.similarity import (
+    SetMatch,
+    best_offset,
+    paper_scaled,
+    sums_from_integral,
+    wrap_angle_rad,
+)
 
 __all__ = ["FastConfig", "FastMatcher", "FineSpectra", "PreparedSet", "pairwise_matches", "prepare"]
 
@@ -52,10 +58,13 @@ class FastConfig:
     coarse_downsample: int = 16
     coarse_row_downsample: int = 16
     coarse_dy_px: int = 0
+    #: The refinement's scale: the paper's quarter (see
+    #: :func:`localizer.similarity.paper_scaled`).
     fine_downsample: int = 4
-    fine_row_downsample: int = 6
     refine_candidates: int = 2
-    refine_offsets: int = 2
+    #: Offsets refined for the best junction: every one (up to 360) by default, so
+    #: that its similarity is the reference's, which is cheap at the quarter scale.
+    refine_offsets: int = 360
     runner_up_offsets: int = 1
     #: Zoom-in factors (> 1) also tried in the refinement, on either set of a pair;
     #: empty for the paper's algorithm. See :func:`_zoomed`.
@@ -64,6 +73,10 @@ class FastConfig:
     #: image width, before anything else; 0 for the paper's algorithm. See
     #: :func:`_high_passed`.
     highpass_fraction: float = 0.0
+    #: Refine at the paper's quarter scale (area averaging, the reference's pixels).
+    #: False: plain decimation, columns by ``fine_downsample`` and rows by 6, the
+    #: resampling pipemap's ``--robust`` similarity was tuned with before issue 17.
+    paper_resampling: bool = True
     #: Report each pair's similarity above its baseline: the mean of the two sets'
     #: :attr:`PreparedSet.baseline`. See :func:`_baseline`.
     baseline: bool = False
@@ -73,7 +86,6 @@ class FastConfig:
             "coarse_downsample",
             "coarse_row_downsample",
             "fine_downsample",
-            "fine_row_downsample",
             "refine_candidates",
             "refine_offsets",
             "runner_up_offsets",
@@ -89,6 +101,41 @@ class FastConfig:
         for zoom in self.zooms:
             if not (1.0 < zoom <= 2.0):
                 raise LocalizerError(f"zoom factors must be in (1, 2], got {zoom}")
+
+
+@dataclass(frozen=True, eq=False)
+class Compact:
+    """Images stored in as few bytes as give them back exactly.
+
+    A quarter-scale pixel of 8-bit images is a mean of 16 integers: ``scale`` times it
+    is an integer below 65536, kept as uint16 (2 bytes a pixel instead of 8). Other
+    images (not integer-valued, or not an exact box mean) are kept as float64.
+    """
+
+    values: np.ndarray
+    scale: float
+
+    @classmethod
+    def of(cls, images: np.ndarray, scale: float) -> Compact:
+        """The compact form of ``images`` (float64), exact or not compacted at all."""
+        scaled = images * scale
+        rounded = np.rint(scaled)
+        if (
+            images.size
+            and float(rounded.min()) >= 0.0
+            and float(rounded.max()) < 65536.0
+            and np.array_equal(scaled, rounded)
+            and np.array_equal(rounded / scale, images)
+        ):
+            return cls(rounded.astype(np.uint16), scale)
+        return cls(np.asarray(images, dtype=np.float64), 1.0)
+
+    def images(self) -> np.ndarray:
+        """The images, exactly as given to :meth:`of`."""
+        if self.scale == 1.0:
+            return np.asarray(self.values, dtype=np.float64)
+        out: np.ndarray = self.values.astype(np.float64) / self.scale
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,8 +157,11 @@ class PreparedSet:
     #: Screening: 1 / sqrt(local variance sum) of each searched image per (dy, dx),
     #: (D, N, Wc); 0 where the window is flat.
     inv_window_norm: np.ndarray
-    #: Refinement: spectra and norms of the decimated images.
-    fine: FineSpectra
+    #: Refinement: spectra and norms of the quarter-scale images (``None`` once the
+    #: set is in a :class:`FastMatcher`, which keeps ``fine_images`` instead).
+    fine: FineSpectra | None
+    #: Refinement: the quarter-scale images themselves, compactly (see :class:`Compact`).
+    fine_images: Compact | None = None
     #: Refinement: the same of the images zoomed in by each of ``FastConfig.zooms``.
     zoomed: tuple[FineSpectra, ...] = ()
     #: How alike unrelated views of this imagery look (0.0 unless ``FastConfig.baseline``).
@@ -129,10 +179,13 @@ def _area_downsampled(images: np.ndarray, row_factor: int, col_factor: int) -> n
     return out
 
 
-def _decimated(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarray:
-    rows = max(1, min(row_factor, images.shape[1] // 2))
-    cols = max(1, min(col_factor, images.shape[2] // 2))
-    return np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float32)
+def _fine_scaled(images: np.ndarray, config: FastConfig) -> np.ndarray:
+    """The refinement's images: the paper's quarter scale, or plain decimation."""
+    if config.paper_resampling:
+        return paper_scaled(images, config.fine_downsample)
+    rows = max(1, min(6, images.shape[1] // 2))
+    cols = max(1, min(config.fine_downsample, images.shape[2] // 2))
+    return np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float64)
 
 
 def _high_passed(image_set: ImageSet, sigma_px: float) -> ImageSet:
@@ -199,6 +252,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     if config.highpass_fraction > 0.0:
         image_set = _high_passed(image_set, config.highpass_fraction * image_set.width)
     cropped = image_set.cropped()
+    fine_images = _fine_scaled(cropped, config)
     small = _area_downsampled(cropped, config.coarse_row_downsample, config.coarse_downsample)
     n, rows, wd = small.shape
     zero_mean = small - small.mean(axis=(1, 2), keepdims=True)
@@ -224,17 +278,10 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
         image_rows=np.ascontiguousarray(spectra.transpose(2, 1, 0), np.complex64),
         inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
-        fine=_fine_spectra(
-            _decimated(cropped, config.fine_row_downsample, config.fine_downsample),
-            image_set.width,
-        ),
+        fine=_fine_spectra(fine_images, image_set.width),
+        fine_images=Compact.of(fine_images, float(config.fine_downsample) ** 2),
         zoomed=tuple(
-            _fine_spectra(
-                _decimated(
-                    _zoomed(image_set, zoom), config.fine_row_downsample, config.fine_downsample
-                ),
-                image_set.width,
-            )
+            _fine_spectra(_fine_scaled(_zoomed(image_set, zoom), config), image_set.width)
             for zoom in config.zooms
         ),
     )
@@ -264,7 +311,7 @@ _SHAPE_FIELDS = (
     "coarse_row_downsample",
     "coarse_dy_px",
     "fine_downsample",
-    "fine_row_downsample",
+    "paper_resampling",
 )
 
 
@@ -426,6 +473,11 @@ def _fine_peaks(
     return np.clip(value, -1.0, 1.0).reshape(shape), (column - width // 2).reshape(shape)
 
 
+def _fine(prepared: PreparedSet) -> FineSpectra:
+    assert prepared.fine is not None, "a database's set: use FastMatcher._refinable"
+    return prepared.fine
+
+
 def _zoomed_peaks(
     query: PreparedSet, blocks: list[tuple[PreparedSet, int]]
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -436,11 +488,11 @@ def _zoomed_peaks(
     nearer to, or farther from, the wall it faces), and keeps the highest peak and
     that peak's column shift.
     """
-    values, columns = _fine_peaks(query.fine, [(known.fine, k) for known, k in blocks])
+    values, columns = _fine_peaks(_fine(query), [(_fine(known), k) for known, k in blocks])
     for z, zoomed in enumerate(query.zoomed):
         for trial in (
-            _fine_peaks(zoomed, [(known.fine, k) for known, k in blocks]),
-            _fine_peaks(query.fine, [(known.zoomed[z], k) for known, k in blocks]),
+            _fine_peaks(zoomed, [(_fine(known), k) for known, k in blocks]),
+            _fine_peaks(_fine(query), [(known.zoomed[z], k) for known, k in blocks]),
         ):
             better = trial[0] > values
             values = np.where(better, trial[0], values)
@@ -469,6 +521,8 @@ class FastMatcher:
         self._sets: list[PreparedSet] = []
         self._image_rows: np.ndarray | None = None  # (F, R, N*M), grown by add()
         self._inv_window_norm: np.ndarray | None = None  # (D, N*M, Wc)
+        #: Refinement spectra of the last few refined known sets, rebuilt on demand.
+        self._fine_cache: OrderedDict[int, PreparedSet] = OrderedDict()
 
     def __len__(self) -> int:
         return len(self._sets)
@@ -505,8 +559,35 @@ class FastMatcher:
             self._inv_window_norm = _grown(self._inv_window_norm, axis=1)
         self._image_rows[:, :, used : used + n] = prepared.image_rows
         self._inv_window_norm[:, used : used + n, :] = prepared.inv_window_norm
-        self._sets.append(prepared)
+        self._sets.append(_kept(prepared))
         return len(self._sets) - 1
+
+    def kept_bytes(self) -> int:
+        """Memory the database holds for its known sets (screening arrays as used,
+        the compact refinement images, and any zoomed spectra)."""
+        arrays = self._screening_arrays()
+        total = 0 if arrays is None else sum(a.nbytes for a in arrays)
+        for known in self._sets:
+            if known.fine_images is not None:
+                total += known.fine_images.values.nbytes
+            total += sum(z.spectrum.nbytes + z.inv_window_norm.nbytes for z in known.zoomed)
+        return total
+
+    def _refinable(self, i: int) -> PreparedSet:
+        """Known set ``i`` with its refinement spectra, from a small cache (they cost
+        ten times the compact images to keep, and a few ms to rebuild)."""
+        cached = self._fine_cache.get(i)
+        if cached is not None:
+            self._fine_cache.move_to_end(i)
+            return cached
+        known = self._sets[i]
+        if known.fine is None:
+            assert known.fine_images is not None
+            known = replace(known, fine=_fine_spectra(known.fine_images.images(), known.width_px))
+        self._fine_cache[i] = known
+        if len(self._fine_cache) > _FINE_CACHE:
+            self._fine_cache.popitem(last=False)
+        return known
 
     def _screening_arrays(self) -> tuple[np.ndarray, np.ndarray] | None:
         if self._image_rows is None or self._inv_window_norm is None:
@@ -593,14 +674,15 @@ class FastMatcher:
             ]
         ]
         if blocks:
-            values, columns = _zoomed_peaks(query, [(self._sets[i], k) for i, k in blocks])
+            values, columns = _zoomed_peaks(query, [(self._refinable(i), k) for i, k in blocks])
         j = np.arange(n)
         for i in order[: self.config.refine_candidates]:
             peak_ncc = np.full((n, n), -np.inf)
             peak_dx = np.zeros((n, n))
             for b, (owner, k) in enumerate(blocks):
                 if owner == i:
-                    fine = self._sets[i].fine
+                    fine = self._refinable(i).fine
+                    assert fine is not None
                     peak_ncc[j, (j + k) % n] = values[b]
                     peak_dx[j, (j + k) % n] = columns[b] * (fine.full_width_px / fine.width)
             refined = best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
@@ -610,6 +692,24 @@ class FastMatcher:
             m.turned(query.camera_angle_rad - known.camera_angle_rad)
             for m, known in zip(matches, self._sets, strict=True)
         ]
+
+
+#: Known sets whose refinement spectra a matcher keeps at hand.
+_FINE_CACHE = 8
+
+
+def _kept(prepared: PreparedSet) -> PreparedSet:
+    """What a database keeps of a set: no query-side screening rows (the matcher's
+    arrays hold its searched rows), no spectra when the compact images can rebuild them."""
+    empty = np.zeros((0,), dtype=np.complex64)
+    rebuildable = prepared.fine_images is not None
+    return replace(
+        prepared,
+        template_rows=empty,
+        image_rows=empty,
+        inv_window_norm=np.zeros((0,), dtype=np.float32),
+        fine=None if rebuildable else prepared.fine,
+    )
 
 
 def _screened_matches(

@@ -26,11 +26,12 @@ from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
 from pipemap.localizer.twoview import (
+    StoredFeatures,
     SweepFeatures,
     TwoViewConfig,
     TwoViewFit,
     fit_two_view,
-    sweep_features,
+    stored_features,
 )
 
 __all__ = [
@@ -225,7 +226,8 @@ class Localizer:
     def __init__(self, config: LocalizerConfig | None = None) -> None:
         self.config = config if config is not None else LocalizerConfig()
         self._matcher = FastMatcher(self.config.fast)
-        self._features: list[SweepFeatures] = []  # by node, with ``config.two_view``
+        #: Keypoints by node (with ``config.two_view``), computed once per sweep, kept compact.
+        self._features: list[StoredFeatures] = []
         self.map = TopoMap()
 
     @property
@@ -284,8 +286,10 @@ class Localizer:
                     break
         fit = None
         features = None
+        stored = None
         if self.config.two_view:
-            features = sweep_features(matched, self.config.two_view_config)
+            stored = stored_features(matched, self.config.two_view_config)
+            features = stored.features()
         if features is not None and self.config.verify and self._checkable(features):
             verified = self._verified(features, matched_all)
             known = verified is not None
@@ -300,17 +304,17 @@ class Localizer:
                 assert best is not None
                 guess = matched_all[best].rotation_rad
                 config = self.config.two_view_config
-                raw = fit_two_view(features, self._features[best], config, guess)
+                raw = fit_two_view(features, self._features[best].features(), config, guess)
                 fit = None if raw is None else raw.turned(turn)
         if known:
             assert best is not None
             node = best
         else:
             node = self._matcher.add(prepared)
-            if features is not None:
+            if stored is not None:
                 if matched is not query:  # a probe's: remember the visit's own sweep
-                    features = sweep_features(query, self.config.two_view_config)
-                self._features.append(features)
+                    stored = stored_features(query, self.config.two_view_config)
+                self._features.append(stored)
         self.map.visit(node)
         return Decision(
             node=node,
@@ -337,13 +341,15 @@ class Localizer:
         # Refined junctions first, then screened ones: the two scores differ in scale.
         allowed = [i for i in range(len(matches)) if i != exclude]
         ranked = sorted(allowed, key=lambda i: (not matches[i].refined, -matches[i].similarity, i))
-        # A fit with fewer inliers would not count: let it stop as soon as it knows.
+        # A fit with fewer inliers would not count: let it stop as soon as it knows
+        # (so only the junction that fits pays for the tilted refinement).
         config = replace(
             self.config.two_view_config,
             min_inliers=max(self.config.two_view_config.min_inliers, self.config.verify_inliers),
         )
         for i in ranked[: self.config.verify_candidates]:
-            fit = fit_two_view(features, self._features[i], config, matches[i].rotation_rad)
+            known = self._features[i].features()
+            fit = fit_two_view(features, known, config, matches[i].rotation_rad)
             if fit is not None and fit.inliers >= self.config.verify_inliers:
                 return i, fit
         return None

@@ -8,8 +8,11 @@ tests) imports it from here.
 
 from __future__ import annotations
 
+from typing import Any
+
 __all__ = [
     "PAPER_THRESHOLD",
+    "ROBUST_FAST",
     "ROBUST_HIGHPASS_FRACTION",
     "ROBUST_THRESHOLD",
     "ROBUST_ZOOMS",
@@ -25,3 +28,7 @@ PAPER_THRESHOLD = 0.36
 ROBUST_ZOOMS = (1.15, 1.3)
 ROBUST_HIGHPASS_FRACTION = 0.125
 ROBUST_THRESHOLD = 0.062
+#: What ``--robust`` keeps of the fast path's refinement it was tuned with (before the
+#: fast path took the paper's quarter scale and every offset): plain decimation, two
+#: offsets. Keyword arguments of :class:`pipemap.localizer.FastConfig`.
+ROBUST_FAST: dict[str, Any] = {"paper_resampling": False, "refine_offsets": 2}

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any, NoReturn
 from pipemap import __version__
 from pipemap.localizer.presets import (
     PAPER_THRESHOLD,
+    ROBUST_FAST,
     ROBUST_HIGHPASS_FRACTION,
     ROBUST_THRESHOLD,
     ROBUST_ZOOMS,
@@ -155,6 +156,7 @@ def fast_config(args: argparse.Namespace) -> FastConfig:
         zooms=args.zoom,
         highpass_fraction=args.highpass,
         baseline=args.baseline,
+        **(ROBUST_FAST if args.robust else {}),
     )
 
 

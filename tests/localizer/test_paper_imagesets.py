@@ -30,6 +30,8 @@ from pipemap.localizer import (
 from tests.conftest import PaperSet
 
 REFERENCE_FILE = Path(__file__).parent / "data" / "paper_reference.json"
+#: The fast path must give the reference's similarity within this on every pair.
+AGREEMENT = 0.005
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +72,7 @@ def test_fast_path_agrees_with_the_reference_on_every_pair(fast, reference, pape
     for (a, b), ref in reference.items():
         got = fast[(a, b)]
         assert (got.similarity >= DEFAULT_THRESHOLD) == (ref["similarity"] >= DEFAULT_THRESHOLD)
-        assert got.similarity == pytest.approx(ref["similarity"], abs=0.03), (a, b)
+        assert got.similarity == pytest.approx(ref["similarity"], abs=AGREEMENT), (a, b)
         # Between different junctions the best offset is an argmax over noise (all
         # offsets score alike, about 0.25-0.3): offset and rotation mean nothing there.
         if paper_sets[a].same_junction(paper_sets[b]):
@@ -81,13 +83,13 @@ def test_fast_path_agrees_with_the_reference_on_every_pair(fast, reference, pape
 
 
 def test_localizer_cascade_decides_as_the_reference(paper_sets, reference) -> None:  # type: ignore[no-untyped-def]
-    # The decision path screens, then refines only the two most promising offsets.
+    # The decision path screens, then refines the best junction at every offset.
     for (a, b), ref in reference.items():
         matcher = FastMatcher()
         matcher.add(matcher.prepare(paper_sets[b].images))
         got = matcher.match(matcher.prepare(paper_sets[a].images))[0]
         assert (got.similarity >= DEFAULT_THRESHOLD) == (ref["similarity"] >= DEFAULT_THRESHOLD)
-        assert got.similarity == pytest.approx(ref["similarity"], abs=0.03), (a, b)
+        assert got.similarity == pytest.approx(ref["similarity"], abs=AGREEMENT), (a, b)
         if paper_sets[a].same_junction(paper_sets[b]):
             assert got.image_shift == ref["image_shift"], (a, b)
 
@@ -98,17 +100,15 @@ def test_the_threshold_separates_same_from_different_junctions(fast, paper_sets,
     }
     different = [m.similarity for k, m in fast.items() if k not in same]
     assert len(same) == 36 and len(different) == 19
-    # Every different-junction pair is rejected at the paper's threshold, and the two
-    # classes are separable with room to spare on the "different" side.
-    assert max(different) < DEFAULT_THRESHOLD - 0.03
-    assert max(different) < min(same.values())
-    # One same-junction pair falls just short of 0.36, in the fast path and in the
-    # paper's own algorithm at full resolution alike: 1_active vs 2_noise, views 90
-    # degrees apart, 0.357 by the reference. Every other same pair is recognised.
-    missed = sorted(k for k, v in same.items() if v < DEFAULT_THRESHOLD)
-    assert missed == [("1_active", "2_noise")]
-    assert reference[("1_active", "2_noise")]["similarity"] < DEFAULT_THRESHOLD
-    assert same[("1_active", "2_noise")] > DEFAULT_THRESHOLD - 0.005
+    # The paper's algorithm (quarter scale) recognises every same-junction pair and
+    # rejects every different one, with room on both sides. The hardest same pair is
+    # 1_active vs 2_noise, views 90 degrees apart: 0.373 (0.357 at full resolution,
+    # which is not the paper's algorithm).
+    assert max(different) < DEFAULT_THRESHOLD - 0.02
+    assert min(same.values()) >= DEFAULT_THRESHOLD + 0.01
+    assert reference[("1_active", "2_noise")]["similarity"] == pytest.approx(0.373, abs=0.0005)
+    for k, v in same.items():
+        assert reference[k]["similarity"] >= DEFAULT_THRESHOLD, k
 
 
 def _rotation_errors(fast, paper_sets, attribute: str) -> list[float]:  # type: ignore[no-untyped-def]

@@ -138,6 +138,7 @@ def test_robust_preset_separates_every_paper_pair_at_its_threshold(
     # benchmarks/eval_similarity.py); the paper's Gazebo images at 800 px fall on the
     # same scale. Measured: same pairs >= 0.133, different pairs <= 0.0601.
     from pipemap.localizer.presets import (
+        ROBUST_FAST,
         ROBUST_HIGHPASS_FRACTION,
         ROBUST_THRESHOLD,
         ROBUST_ZOOMS,
@@ -145,7 +146,10 @@ def test_robust_preset_separates_every_paper_pair_at_its_threshold(
 
     names = sorted(paper_sets)
     config = FastConfig(
-        zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS_FRACTION, baseline=True
+        zooms=ROBUST_ZOOMS,
+        highpass_fraction=ROBUST_HIGHPASS_FRACTION,
+        baseline=True,
+        **ROBUST_FAST,
     )
     matches = pairwise_matches([paper_sets[n].images for n in names], config)
     for (i, j), match in matches.items():
