@@ -52,10 +52,11 @@ class LogWriter:
             compression=CompressionType.ZSTD,
             enable_crcs=True,
             enable_data_crcs=True,
-            # Chunk and metadata indexes, no per-message index: message indexes took
-            # 16 uncompressed bytes per message, a quarter of a small log, and readers
-            # find messages by chunk (time range, channel) without them.
-            index_types=IndexType.CHUNK | IndexType.METADATA | IndexType.ATTACHMENT,
+            # The full index set. Message indexes cost 16 uncompressed bytes per
+            # message, but MCAP's indexed readers need them (the TypeScript reader
+            # Foxglove is built on refuses a chunk index without them), and they tell
+            # what a damaged chunk held.
+            index_types=IndexType.ALL,
         )
         version = run_metadata.get("pipemap_version", "")
         self._mcap.start(profile=PROFILE, library=f"{LIBRARY} {version}".strip())
