@@ -8,6 +8,8 @@ lossless PNG: a replay must see exactly what the robot saw.
 from __future__ import annotations
 
 import math
+import struct
+import zlib
 from typing import TYPE_CHECKING
 
 import cv2
@@ -37,6 +39,7 @@ __all__ = [
     "image_message",
     "log_message",
     "network_message",
+    "png_problem",
     "pose_message",
     "timestamp",
 ]
@@ -66,8 +69,36 @@ def encode_png(rgb: np.ndarray) -> bytes:
     return png.tobytes()
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_CHUNK = struct.Struct(">I4s")
+
+
+def png_problem(data: bytes) -> str:
+    """What is wrong with PNG bytes ("" when nothing is): every chunk must be whole,
+    its CRC must match, and the image must end in IEND. libpng prints its own
+    complaints to the process's standard error, so damage is caught here first."""
+    if not data.startswith(_PNG_SIGNATURE):
+        return "not a PNG image" if data else "an empty image"
+    position = len(_PNG_SIGNATURE)
+    while position + _PNG_CHUNK.size <= len(data):
+        length, kind = _PNG_CHUNK.unpack_from(data, position)
+        end = position + _PNG_CHUNK.size + length + 4
+        if end > len(data):
+            return "a truncated PNG image"
+        (crc,) = struct.unpack_from(">I", data, end - 4)
+        if zlib.crc32(data[position + 4 : end - 4]) != crc:
+            return f"a corrupt PNG image (CRC mismatch in its {kind!r} chunk)"
+        if kind == b"IEND":
+            return ""
+        position = end
+    return "a truncated PNG image"
+
+
 def decode_png(data: bytes) -> np.ndarray | None:
-    """The RGB image of PNG bytes, or ``None`` when they are not a readable image."""
+    """The RGB image of PNG bytes, or ``None`` when they are not a readable image
+    (:func:`png_problem` says why)."""
+    if png_problem(data):
+        return None
     bgr = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
     if bgr is None:
         return None

@@ -2,7 +2,9 @@
 
 Both read the log's ``/robot`` messages only for the localizer; ``score`` also reads
 ``/truth`` to compare. A log cut short is replayed up to its last complete sweep,
-with a warning, and exit 0. A wrong map is a result, not an error: exit 0.
+with a warning, and exit 0; so is a damaged one, every sweep of its intact parts,
+with a warning naming each damaged part and each sweep skipped. A wrong map is a
+result, not an error: exit 0.
 """
 
 from __future__ import annotations
@@ -48,16 +50,13 @@ def open_source(args: argparse.Namespace, err: TextIO) -> Any:
     from pipemap.replay import FileSource
 
     source = FileSource(Path(args.log))
-    if source.integrity is Integrity.TRUNCATED:
-        err.write(
-            f"pipemap: warning: {args.log} is cut short ({source.problem}); "
-            "replaying its complete part\n"
-        )
-    elif source.integrity is Integrity.CORRUPT:
-        err.write(
-            f"pipemap: warning: {args.log} is damaged ({source.problem}); "
-            "replaying what came before the damage\n"
-        )
+    contents = source.contents
+    for damage in contents.damage:
+        err.write(f"pipemap: warning: {args.log}: damaged {damage.describe()}\n")
+    if contents.truncated:
+        err.write(f"pipemap: warning: {args.log} is cut short: {contents.truncated}\n")
+    if source.integrity is not Integrity.OK:
+        err.write(f"pipemap: warning: {args.log}: replaying every sweep its intact parts hold\n")
     return source
 
 
@@ -130,6 +129,8 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
     source = open_source(args, err)
     result = replay(source, config, progress_printer(err))
     report = score_replay(result, source, config.threshold, config.fast)
+    for warning in result.warnings:
+        err.write(f"pipemap: note: {warning}\n")
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
         (folder / "score.json").write_text(report.json_text())
