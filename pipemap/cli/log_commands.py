@@ -60,17 +60,13 @@ def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, run the episode while writing its log, print a summary."""
+    from pipemap.cli.outputs import output_file
     from pipemap.recorder import RecordSettings, record_run
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
 
-    target = Path(args.output)
-    if target.is_dir():
-        raise InputError(f"-o {target}: is a folder, not a file")
-    if target.exists() and not args.force:
-        raise InputError(f"-o {target}: exists; refusing to overwrite without --force")
-    if not target.parent.is_dir():
-        raise InputError(f"-o {target}: folder {target.parent} does not exist")
+    target = output_file(args.output, "-o", args.force)
+    assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
     if args.start is not None and args.start not in network.labels:
         raise InputError(
