@@ -240,8 +240,8 @@ class Localizer:
         return self._matcher.match(self._matcher.prepare(query))
 
     def _excluded(self) -> int | None:
-        if self.config.distinct_consecutive and self.map.visits:
-            return self.map.visits[-1]
+        if self.config.distinct_consecutive:
+            return self.map.previous
         return None
 
     def _best(

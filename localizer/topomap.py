@@ -7,6 +7,10 @@ between the same pair of junctions are one edge: the map records adjacency. Two
 consecutive visits of one junction add a self-loop; the localizer makes them only
 under the paper's rule (``LocalizerConfig.distinct_consecutive`` off), since a pipe
 joins two different junctions.
+
+When a visit is lost (its sweep was in a damaged part of a log), the robot's path
+is broken there: :meth:`TopoMap.lose_track` makes the next visit add no edge, since
+the junctions either side of the lost one need not be neighbours.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ class TopoMap:
         self._nodes = 0
         self._edges: dict[frozenset[int], MapEdge] = {}
         self._visits: list[int] = []
+        self._on_track = True
 
     @property
     def graph(self) -> nx.Graph:
@@ -59,6 +64,15 @@ class TopoMap:
         return tuple(self._visits)
 
     @property
+    def previous(self) -> int | None:
+        """The junction the robot came from directly, if the path is unbroken."""
+        return self._visits[-1] if self._visits and self._on_track else None
+
+    def lose_track(self) -> None:
+        """A visit was lost: the next visit is not joined to the last one by an edge."""
+        self._on_track = False
+
+    @property
     def node_count(self) -> int:
         """Number of junctions in the map."""
         return self._nodes
@@ -73,13 +87,14 @@ class TopoMap:
         if node == self._nodes:
             self._nodes += 1
         added = None
-        if self._visits:
-            previous = self._visits[-1]
+        previous = self.previous
+        if previous is not None:
             key = frozenset((previous, node))
             if key not in self._edges:
                 added = MapEdge(previous, node, len(self._edges) + 1)
                 self._edges[key] = added
         self._visits.append(node)
+        self._on_track = True
         return added
 
     def edges(self) -> list[MapEdge]:

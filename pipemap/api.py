@@ -97,8 +97,7 @@ class Log:
         """Every complete camera sweep of the log, in the robot's order: visits first
         taken at each junction and the probe sweeps of active vision (``probe`` set).
         Each holds the grey :class:`ImageSet` the localizer sees."""
-        found, _ = sweeps_of(self.source.robot_messages(), self.source.name)
-        return found
+        return sweeps_of(self.source.robot_messages(), self.source.name).sweeps
 
     def visits(self) -> list[LoggedSweep]:
         """The sweeps that are junction visits (no probe sweeps), in the robot's order."""

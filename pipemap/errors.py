@@ -2,7 +2,8 @@
 
 Library code raises a subclass of :class:`PipemapError` whose message names the
 offending value; only the command line catches it, prints it as one line and
-exits with status 2. Any other exception is a bug and keeps its traceback.
+exits with status 2, or 3 for a :class:`WriteError` (an output that could not be
+written whole). Any other exception is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ __all__ = [
     "PipemapError",
     "SimError",
     "ViewerError",
+    "WriteError",
 ]
 
 
@@ -39,3 +41,8 @@ class LogFormatError(PipemapError):
 
 class ViewerError(PipemapError):
     """The rerun viewer cannot be started or reached (no display, no connection)."""
+
+
+class WriteError(PipemapError):
+    """Writing an output failed part-way: a full disk, a killed log writer. What was
+    written before stays readable; the command line exits with status 3."""

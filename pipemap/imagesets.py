@@ -22,14 +22,13 @@ import numpy as np
 
 from pipemap.errors import InputError
 from pipemap.localizer import ImageSet
+from pipemap.pngcheck import PNG_SIGNATURE, png_problem
 
 __all__ = ["IMAGE_SUFFIXES", "load_image_set", "load_image_sets", "read_info", "write_image_set"]
 
 #: Image formats accepted in a set folder (those OpenCV decodes everywhere).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
 _NAME = re.compile(r"^camera_image(\d+)$")
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-_PNG_END = b"IEND\xaeB`\x82"  # type and CRC of the IEND chunk, a PNG's last
 
 
 def _image_files(folder: Path) -> list[Path]:
@@ -58,9 +57,13 @@ def _read_gray(path: Path) -> np.ndarray:
     # libjpeg decodes a truncated JPEG with only a warning: demand the end marker.
     if path.suffix.lower() in (".jpg", ".jpeg") and not data.rstrip(b"\0").endswith(b"\xff\xd9"):
         raise InputError(f"{path}: truncated or corrupt JPEG image")
-    # libpng reports a truncated PNG on stderr itself: demand the final IEND chunk.
-    if data.startswith(_PNG_SIGNATURE) and _PNG_END not in data:
-        raise InputError(f"{path}: truncated or corrupt PNG image")
+    if not data:
+        raise InputError(f"{path}: empty file, not an image")
+    # libpng reports a damaged PNG on stderr itself: check the chunks and their CRCs first.
+    if data.startswith(PNG_SIGNATURE):
+        problem = png_problem(data)
+        if problem:
+            raise InputError(f"{path}: {problem}")
     image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
     if image is None or image.size == 0:
         raise InputError(f"{path}: not a readable image")

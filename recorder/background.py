@@ -29,7 +29,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO, cast
 
-from pipemap.errors import InputError
+from pipemap.errors import InputError, WriteError
 from pipemap.recorder.convert import LogRecord, RecordConverter
 from pipemap.recorder.writer import LogWriter
 
@@ -74,40 +74,66 @@ def _drain(stream: BinaryIO, frames: queue.SimpleQueue[bytes | None]) -> None:
         frames.put(None)
 
 
+def _reply(replies: BinaryIO, item: object) -> None:
+    """Answer the recording process; if it is gone (killed), there is no one to tell."""
+    with contextlib.suppress(OSError):
+        _send(replies, item)
+
+
 def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> int:
-    """The writer process: open the log, write every batch received, finish."""
+    """The writer process: open the log, write every batch received, finish.
+
+    A write that fails (a full disk, the file size limit) is answered as one line of
+    text, not a traceback: what was written before it stays in the file, cut short.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if hasattr(signal, "SIGXFSZ"):  # past the file size limit: an error, not a kill
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     run_metadata = _receive(records)
     try:
         output = cast(BinaryIO, open(path, mode))  # noqa: SIM115 - closed after the summary
     except OSError as exc:
-        _send(replies, ("error", f"{path}: {exc.strerror}"))
+        _reply(replies, ("error", f"{path}: {exc.strerror}"))
         return 1
-    with output:
-        writer = LogWriter(output, run_metadata)
-        convert = RecordConverter(writer)
-        _send(replies, ("ready", None))
-        result: dict[str, str] | None = {"status": "lost its run: the recording process ended"}
-        frames: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
-        threading.Thread(target=_drain, args=(records, frames), daemon=True).start()
-        try:
-            while True:
-                frame = frames.get()
-                if frame is None:
-                    break
-                item = pickle.loads(frame)
-                if isinstance(item, tuple):
-                    result = item[1]
-                    break
-                for record in item:
-                    convert(record)
-        except BaseException as exc:
-            writer.finish({"status": "failed", "error": f"{type(exc).__name__}: {exc}"[:500]})
-            _send(replies, ("error", traceback.format_exc()))
-            return 1
-        writer.finish(result)
-        _send(replies, ("done", writer.messages))
+    try:
+        return _write(output, records, replies, run_metadata)
+    except OSError as exc:
+        _reply(replies, ("failed", f"writing {path} failed: {exc.strerror or exc}"))
+        return 1
+    finally:
+        with contextlib.suppress(OSError):  # the buffer cannot be flushed to a full disk
+            output.close()
+
+
+def _write(
+    output: BinaryIO, records: BinaryIO, replies: BinaryIO, run_metadata: dict[str, str]
+) -> int:
+    writer = LogWriter(output, run_metadata)
+    convert = RecordConverter(writer)
+    _reply(replies, ("ready", None))
+    result: dict[str, str] | None = {"status": "lost its run: the recording process ended"}
+    frames: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()
+    threading.Thread(target=_drain, args=(records, frames), daemon=True).start()
+    try:
+        while True:
+            frame = frames.get()
+            if frame is None:
+                break
+            item = pickle.loads(frame)
+            if isinstance(item, tuple):
+                result = item[1]
+                break
+            for record in item:
+                convert(record)
+    except OSError:
+        raise  # the file cannot be written: nothing more can be put in it
+    except BaseException as exc:
+        writer.finish({"status": "failed", "error": f"{type(exc).__name__}: {exc}"[:500]})
+        _reply(replies, ("error", traceback.format_exc()))
+        return 1
+    writer.finish(result)
+    _reply(replies, ("done", writer.messages))
     return 0
 
 
@@ -122,6 +148,7 @@ class BackgroundWriter:
         # Two pipes of our own: the child's stdout stays free for whatever its imports print.
         records_read, records_write = os.pipe()
         replies_read, replies_write = os.pipe()
+        self._path = path
         self._process = subprocess.Popen(
             [
                 sys.executable,
@@ -154,12 +181,27 @@ class BackgroundWriter:
             raise InputError(f"cannot write the log: {detail}")
         self._ready = True
 
+    def _crashed(self, why: str) -> WriteError:
+        self._close()
+        return WriteError(
+            f"{why}; {self._path} holds what was written before, cut short "
+            "(pipemap info and replay read it)"
+        )
+
     def _receive(self) -> tuple[str, Any]:
         try:
             kind, detail = _receive(self._replies)
-        except EOFError:
+        except (EOFError, OSError):
             code = self._process.wait()
-            raise RuntimeError(f"the log writer process died (exit code {code})") from None
+            if code < 0:
+                try:
+                    name = signal.Signals(-code).name
+                except ValueError:
+                    name = f"signal {-code}"
+                raise self._crashed(f"the log writer process was killed ({name})") from None
+            raise self._crashed(f"the log writer process died (exit status {code})") from None
+        if kind == "failed":
+            raise self._crashed(str(detail))
         return str(kind), detail
 
     def _close(self) -> None:
@@ -181,7 +223,7 @@ class BackgroundWriter:
             try:
                 _send(self._records, self._batch)
             except BrokenPipeError:
-                kind, detail = self._receive()
+                kind, detail = self._receive()  # raises WriteError if it died or failed
                 raise RuntimeError(f"the log writer stopped ({kind}):\n{detail}") from None
             self._batch = []
 
@@ -192,7 +234,8 @@ class BackgroundWriter:
             return self.messages
         self._finished = True
         self.send()
-        _send(self._records, ("finish", dict(result_metadata)))
+        with contextlib.suppress(BrokenPipeError):  # the writer is gone: the reply says why
+            _send(self._records, ("finish", dict(result_metadata)))
         kind, detail = self._receive()
         self._close()
         if kind != "done":

@@ -23,6 +23,7 @@ from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
+from pipemap.pngcheck import png_problem
 from pipemap.recorder import schemas
 
 if TYPE_CHECKING:
@@ -37,6 +38,7 @@ __all__ = [
     "image_message",
     "log_message",
     "network_message",
+    "png_problem",
     "pose_message",
     "timestamp",
 ]
@@ -67,7 +69,10 @@ def encode_png(rgb: np.ndarray) -> bytes:
 
 
 def decode_png(data: bytes) -> np.ndarray | None:
-    """The RGB image of PNG bytes, or ``None`` when they are not a readable image."""
+    """The RGB image of PNG bytes, or ``None`` when they are not a readable image
+    (:func:`png_problem` says why)."""
+    if png_problem(data):
+        return None
     bgr = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
     if bgr is None:
         return None

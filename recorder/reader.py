@@ -1,15 +1,22 @@
-"""Reading a log back: its messages, channels and metadata, and whether it is whole.
+"""Reading a log back: its messages, channels and metadata, and what was lost.
 
-The reader walks the file record by record itself, so that it can tell three
-states apart and say where the problem is:
+A pipemap log is recognised by its content, not by the program that wrote it: the
+``pipemap.run`` metadata record and, for every channel on one of pipemap's topics,
+the protobuf schema that topic carries (``docs/log_format.md`` states the
+contract). So a log filtered, merged, recovered or re-compressed by any MCAP tool
+stays a pipemap log.
+
+The file is walked by :mod:`recorder.mcapfile`, which loses only what is damaged.
+A log is then in one of three states:
 
 * ``ok``: every record parses, every CRC matches, the footer and magic close it;
-* ``truncated``: the file stops before its end (a hard kill); everything up to the
-  last complete record is returned;
-* ``corrupt``: a record is malformed or a CRC does not match (a bit flip);
-  everything before the bad record is returned.
+* ``truncated``: the file stops before its end (a hard kill, a full disk);
+  everything up to the last complete record is kept;
+* ``corrupt``: a chunk, a record, the summary or the magic is damaged; every
+  intact chunk is kept, and :attr:`LogContents.damage` says what each damaged
+  one held.
 
-A file that is not MCAP, is empty, or was written by another program raises
+A file that is not MCAP, is empty, or is not a pipemap log raises
 :class:`pipemap.errors.LogFormatError`.
 """
 
@@ -18,26 +25,28 @@ from __future__ import annotations
 import contextlib
 import enum
 import gc
-import struct
-import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from io import BytesIO
 from pathlib import Path
 from typing import NamedTuple
 
-from mcap.data_stream import ReadDataStream
-from mcap.opcode import Opcode
-from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk
-
 from pipemap.errors import LogFormatError
-from pipemap.recorder.topics import LIBRARY, METADATA_RUN
+from pipemap.recorder.mcapfile import Lost, McapHeaderError, Scan, scan
+from pipemap.recorder.topics import FORMAT_VERSION, METADATA_RUN, TOPICS
 
-__all__ = ["Integrity", "LogChannel", "LogContents", "LogMessage", "gc_paused", "read_log"]
+__all__ = [
+    "Damage",
+    "Integrity",
+    "LogChannel",
+    "LogContents",
+    "LogMessage",
+    "gc_paused",
+    "read_log",
+]
 
-_MAGIC = b"\x89MCAP0\r\n"
-_RECORD_HEAD = struct.Struct("<BQ")
+#: The message type each of pipemap's topics carries.
+_TYPE_OF_TOPIC = {topic: message_class.DESCRIPTOR.full_name for topic, message_class in TOPICS}
+_NS_PER_S = 1e9
 
 
 class Integrity(enum.Enum):
@@ -70,6 +79,39 @@ class LogMessage(NamedTuple):
     data: bytes
 
 
+@dataclass(frozen=True)
+class Damage:
+    """A damaged part of a log: where, what is wrong, and what it held, where known."""
+
+    offset: int
+    problem: str
+    #: The damaged chunk's number and how many the file has, when known.
+    chunk: int | None = None
+    chunks: int | None = None
+    start_ns: int | None = None
+    end_ns: int | None = None
+    #: Messages lost, per topic (from the chunk's message indexes), when known.
+    lost: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def where(self) -> str:
+        """``chunk 2 of 14 (byte 123)``, or ``byte 123``."""
+        if self.chunk is None:
+            return f"byte {self.offset}"
+        of = f" of {self.chunks}" if self.chunks is not None else ""
+        return f"chunk {self.chunk}{of} (byte {self.offset})"
+
+    def describe(self) -> str:
+        """One line: where, the problem, and what it held."""
+        text = f"{self.where}: {self.problem}"
+        held = []
+        if self.start_ns is not None and self.end_ns is not None:
+            held.append(f"{self.start_ns / _NS_PER_S:.3f}-{self.end_ns / _NS_PER_S:.3f} s")
+        if self.lost:
+            held.append(", ".join(f"{topic} {count}" for topic, count in sorted(self.lost.items())))
+        return f"{text}; held {': '.join(held)}" if held else text
+
+
 @dataclass
 class LogContents:
     """What a log holds, as far as it could be read."""
@@ -82,6 +124,10 @@ class LogContents:
     integrity: Integrity = Integrity.OK
     #: Where and what the problem is, when ``integrity`` is not ``ok``.
     problem: str = ""
+    #: Every damaged part, in file order (empty unless ``corrupt``).
+    damage: list[Damage] = field(default_factory=list)
+    #: How the file stops early ("" unless it does).
+    truncated: str = ""
     first_time_ns: int | None = None
     last_time_ns: int | None = None
 
@@ -91,99 +137,6 @@ class LogContents:
         if self.first_time_ns is None or self.last_time_ns is None:
             return 0
         return self.last_time_ns - self.first_time_ns
-
-
-class _Corrupt(Exception):
-    pass
-
-
-class _Reader:
-    def __init__(self, data: bytes, keep: Callable[[str], bool]) -> None:
-        self.data = data
-        self.keep = keep
-        self.schemas: dict[int, str] = {}
-        self.contents = LogContents(library="")
-        self.footer_seen = False
-
-    def stream(self, body: bytes) -> ReadDataStream:
-        return ReadDataStream(BytesIO(body))
-
-    def message(self, record: Message) -> None:
-        channel = self.contents.channels.get(record.channel_id)
-        if channel is None:
-            raise _Corrupt(f"message on unknown channel {record.channel_id}")
-        c = self.contents
-        c.counts[channel.topic] = c.counts.get(channel.topic, 0) + 1
-        t = record.log_time
-        c.first_time_ns = t if c.first_time_ns is None else min(c.first_time_ns, t)
-        c.last_time_ns = t if c.last_time_ns is None else max(c.last_time_ns, t)
-        if self.keep(channel.topic):
-            c.messages.append(LogMessage(channel.topic, t, record.sequence, bytes(record.data)))
-
-    def inner(self, record: object) -> None:
-        if isinstance(record, Schema):
-            self.schemas[record.id] = record.name
-        elif isinstance(record, Channel):
-            name = self.schemas.get(record.schema_id, "")
-            self.contents.channels[record.id] = LogChannel(record.id, record.topic, name)
-            self.contents.counts.setdefault(record.topic, 0)
-        elif isinstance(record, Message):
-            self.message(record)
-
-    def record(self, position: int, opcode: int, body: bytes) -> None:
-        if opcode == Opcode.CHUNK:
-            chunk = Chunk.read(self.stream(body))
-            for inner in breakup_chunk(chunk, validate_crc=True):
-                self.inner(inner)
-        elif opcode == Opcode.SCHEMA:
-            self.inner(Schema.read(self.stream(body)))
-        elif opcode == Opcode.CHANNEL:
-            self.inner(Channel.read(self.stream(body)))
-        elif opcode == Opcode.MESSAGE:
-            self.inner(Message.read(self.stream(body), len(body)))
-        elif opcode == Opcode.METADATA:
-            meta = Metadata.read(self.stream(body))
-            self.contents.metadata.setdefault(meta.name, dict(meta.metadata))
-        elif opcode == Opcode.DATA_END:
-            expected = DataEnd.read(self.stream(body)).data_section_crc
-            if expected != 0 and expected != zlib.crc32(self.data[:position]):
-                raise _Corrupt("data section CRC mismatch")
-        elif opcode == Opcode.FOOTER:
-            footer = Footer.read(self.stream(body))
-            self.check_summary(position, footer)
-            self.footer_seen = True
-
-    def check_summary(self, position: int, footer: Footer) -> None:
-        if footer.summary_crc == 0:
-            return
-        start = footer.summary_start if footer.summary_start else position
-        end = position + _RECORD_HEAD.size + 16  # through summary_offset_start
-        if not 0 < start <= position or zlib.crc32(self.data[start:end]) != footer.summary_crc:
-            raise _Corrupt("summary CRC mismatch")
-
-
-def _check_header(reader: _Reader, path: Path) -> int:
-    data = reader.data
-    if len(data) == 0:
-        raise LogFormatError(f"{path}: empty file, not an MCAP log")
-    if not data.startswith(_MAGIC):
-        raise LogFormatError(f"{path}: not an MCAP file")
-    position = len(_MAGIC)
-    if len(data) < position + _RECORD_HEAD.size:
-        raise LogFormatError(f"{path}: MCAP file cut short before its header")
-    opcode, length = _RECORD_HEAD.unpack_from(data, position)
-    body_start = position + _RECORD_HEAD.size
-    if opcode != Opcode.HEADER or body_start + length > len(data):
-        raise LogFormatError(f"{path}: MCAP file without a readable header")
-    try:
-        header = Header.read(reader.stream(data[body_start : body_start + length]))
-    except Exception as exc:  # any parse failure of the header is a malformed file
-        raise LogFormatError(f"{path}: MCAP header is malformed ({exc})") from None
-    if header.library.split(" ")[0] != LIBRARY:
-        writer = header.library or "an unnamed program"
-        raise LogFormatError(f"{path}: an MCAP file written by {writer}, not a pipemap log")
-    reader.contents.library = str(header.library)
-    return int(body_start + length)
 
 
 @contextlib.contextmanager
@@ -213,43 +166,115 @@ def read_log(path: Path | str, keep: Callable[[str], bool] | None = None) -> Log
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read ({exc.strerror})") from None
     with gc_paused():
-        return _read(data, path, keep)
+        return _read(data, path, keep if keep is not None else (lambda _topic: True))
 
 
-def _read(data: bytes, path: Path, keep: Callable[[str], bool] | None) -> LogContents:
-    reader = _Reader(data, keep if keep is not None else (lambda _topic: True))
-    position = _check_header(reader, path)
-    contents = reader.contents
-    # A file that still ends in the magic was written to its end: any failure in it
-    # is damage, not a cut.
-    complete = len(data) >= 2 * len(_MAGIC) and data.endswith(_MAGIC)
-    while not reader.footer_seen:
-        if position + _RECORD_HEAD.size > len(data):
-            if complete:
-                contents.integrity, contents.problem = Integrity.CORRUPT, "no footer"
-            else:
-                contents.integrity = Integrity.TRUNCATED
-                contents.problem = f"file ends inside a record header at byte {position}"
-            break
-        opcode, length = _RECORD_HEAD.unpack_from(data, position)
-        end = position + _RECORD_HEAD.size + length
-        if end > len(data):
-            if complete:
-                contents.integrity = Integrity.CORRUPT
-                contents.problem = f"record at byte {position} runs past the end of the file"
-            else:
-                contents.integrity = Integrity.TRUNCATED
-                contents.problem = f"file ends inside the record at byte {position}"
-            break
-        try:
-            reader.record(position, opcode, data[position + _RECORD_HEAD.size : end])
-        except Exception as exc:  # CRC mismatch, bad compression, malformed record
-            contents.integrity = Integrity.CORRUPT
-            contents.problem = f"record at byte {position}: {exc or type(exc).__name__}"
-            break
-        position = end
-    if reader.footer_seen and data[position:] != _MAGIC:
-        contents.integrity, contents.problem = Integrity.CORRUPT, "bad magic after the footer"
-    if METADATA_RUN not in contents.metadata and contents.integrity is Integrity.OK:
-        raise LogFormatError(f"{path}: MCAP file without pipemap's run metadata")
+class _Collector:
+    """Counts every message by topic and keeps the ones asked for."""
+
+    def __init__(self, keep: Callable[[str], bool]) -> None:
+        self.keep = keep
+        self.contents = LogContents(library="")
+        self._kept: dict[str, bool] = {}
+
+    def __call__(self, topic: str, sequence: int, log_time: int, data: bytes) -> None:
+        c = self.contents
+        kept = self._kept.get(topic)
+        if kept is None:
+            kept = self._kept[topic] = self.keep(topic)
+        c.counts[topic] = c.counts.get(topic, 0) + 1
+        if c.first_time_ns is None or log_time < c.first_time_ns:
+            c.first_time_ns = log_time
+        if c.last_time_ns is None or log_time > c.last_time_ns:
+            c.last_time_ns = log_time
+        if kept:
+            c.messages.append(LogMessage(topic, log_time, sequence, data))
+
+
+def _read(data: bytes, path: Path, keep: Callable[[str], bool]) -> LogContents:
+    collector = _Collector(keep)
+    try:
+        result, tail = scan(data, collector)
+    except McapHeaderError as exc:
+        raise LogFormatError(f"{path}: {exc}") from None
+    contents = collector.contents
+    contents.library = result.library
+    contents.metadata = dict(result.metadata)
+    for channel_id, (topic, schema_id, _encoding) in sorted(result.channels.items()):
+        schema = result.schemas.get(schema_id, ("", ""))[0]
+        contents.channels[channel_id] = LogChannel(channel_id, topic, schema)
+        contents.counts.setdefault(topic, 0)
+    contents.damage = [_damage(lost, result) for lost in result.lost]
+    if result.unknown_channel_messages:
+        contents.damage.append(
+            Damage(
+                0,
+                f"{result.unknown_channel_messages} message(s) on channels whose channel "
+                "record was lost",
+            )
+        )
+    if tail:
+        contents.damage.append(Damage(len(data), f"{tail} (no message is lost)"))
+    contents.truncated = result.truncated
+    problems = [d.describe() for d in contents.damage]
+    if result.truncated:
+        problems.append(result.truncated)
+    contents.problem = "; ".join(problems)
+    if contents.damage:
+        contents.integrity = Integrity.CORRUPT
+    elif result.truncated:
+        contents.integrity = Integrity.TRUNCATED
+    _recognise(contents, result, path)
     return contents
+
+
+def _damage(lost: Lost, found: Scan) -> Damage:
+    topics: dict[str, int] = {}
+    for channel_id, count in lost.counts.items():
+        topic = found.channels.get(channel_id, (f"channel {channel_id}", 0, ""))[0]
+        topics[topic] = topics.get(topic, 0) + count
+    return Damage(
+        lost.offset,
+        lost.problem,
+        lost.chunk,
+        found.chunk_count if lost.chunk is not None else None,
+        lost.start_ns,
+        lost.end_ns,
+        topics,
+    )
+
+
+def _recognise(contents: LogContents, found: Scan, path: Path) -> None:
+    """Refuse a file that is not a pipemap log by its content (docs/log_format.md)."""
+    writer = f"written by {found.library}" if found.library else "written by an unnamed program"
+    run = contents.metadata.get(METADATA_RUN)
+    if run is None:
+        if METADATA_RUN in found.indexed_metadata and contents.damage:
+            return  # the summary names it: a pipemap log whose run metadata is lost
+        if contents.truncated and not contents.channels:
+            raise LogFormatError(
+                f"{path}: cut short before its {METADATA_RUN} metadata ({contents.truncated})"
+            )
+        raise LogFormatError(
+            f"{path}: not a pipemap log: no {METADATA_RUN} metadata (an MCAP file {writer})"
+        )
+    version = run.get("format_version")
+    if version != FORMAT_VERSION:
+        got = "none" if version is None else repr(version)
+        raise LogFormatError(
+            f"{path}: log format version {got} in {METADATA_RUN}; this pipemap reads "
+            f"version {FORMAT_VERSION!r}"
+        )
+    for channel_id, (topic, schema_id, encoding) in found.channels.items():
+        expected = _TYPE_OF_TOPIC.get(topic)
+        if expected is None:
+            continue  # a topic pipemap does not read: allowed, and ignored
+        schema_name, schema_encoding = found.schemas.get(schema_id, ("", ""))
+        if encoding != "protobuf" or schema_encoding != "protobuf" or schema_name != expected:
+            got = f"{encoding or 'no'} messages, schema {schema_name or 'none'!s}"
+            if schema_encoding and schema_encoding != "protobuf":
+                got += f" ({schema_encoding})"
+            raise LogFormatError(
+                f"{path}: channel {channel_id} ({topic}) has {got}; pipemap's log format "
+                f"has protobuf {expected} there"
+            )

@@ -22,7 +22,14 @@ from mcap.writer import CompressionType, IndexType
 from mcap.writer import Writer as McapWriter
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from pipemap.recorder.topics import LIBRARY, METADATA_RESULT, METADATA_RUN, PROFILE, TOPICS
+from pipemap.recorder.topics import (
+    FORMAT_VERSION,
+    LIBRARY,
+    METADATA_RESULT,
+    METADATA_RUN,
+    PROFILE,
+    TOPICS,
+)
 
 __all__ = ["DEFAULT_CHUNK_BYTES", "LogWriter"]
 
@@ -35,8 +42,8 @@ class LogWriter:
     """Writes one run's log to ``output``, an open binary file.
 
     ``run_metadata`` (string keys and values) is written first as the
-    ``pipemap.run`` metadata record; its ``pipemap_version`` also names the writing
-    library in the file's header.
+    ``pipemap.run`` metadata record, with the log format's ``format_version``; its
+    ``pipemap_version`` also names the writing library in the file's header.
     """
 
     def __init__(
@@ -52,10 +59,11 @@ class LogWriter:
             compression=CompressionType.ZSTD,
             enable_crcs=True,
             enable_data_crcs=True,
-            # Chunk and metadata indexes, no per-message index: message indexes took
-            # 16 uncompressed bytes per message, a quarter of a small log, and readers
-            # find messages by chunk (time range, channel) without them.
-            index_types=IndexType.CHUNK | IndexType.METADATA | IndexType.ATTACHMENT,
+            # The full index set. Message indexes cost 16 uncompressed bytes per
+            # message, but MCAP's indexed readers need them (the TypeScript reader
+            # Foxglove is built on refuses a chunk index without them), and they tell
+            # what a damaged chunk held.
+            index_types=IndexType.ALL,
         )
         version = run_metadata.get("pipemap_version", "")
         self._mcap.start(profile=PROFILE, library=f"{LIBRARY} {version}".strip())
@@ -76,7 +84,7 @@ class LogWriter:
             )
             self._types[topic] = name
             self._sequence[topic] = 0
-        self._mcap.add_metadata(METADATA_RUN, dict(run_metadata))
+        self._mcap.add_metadata(METADATA_RUN, {"format_version": FORMAT_VERSION, **run_metadata})
         self.messages = 0
         self._last_time_ns = 0
         self._finished = False

@@ -7,6 +7,7 @@ other. Not for use by hand.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 
@@ -14,5 +15,12 @@ from pipemap.recorder.background import writer_main
 
 if __name__ == "__main__":
     records_fd, replies_fd, path, mode = sys.argv[1:5]
-    with os.fdopen(int(records_fd), "rb") as records, os.fdopen(int(replies_fd), "wb") as replies:
-        sys.exit(writer_main(records, replies, path, mode))
+    records, replies = os.fdopen(int(records_fd), "rb"), os.fdopen(int(replies_fd), "wb")
+    try:
+        code = writer_main(records, replies, path, mode)
+    finally:
+        for stream in (records, replies):
+            # A recording process that was killed left a broken pipe: nobody to tell.
+            with contextlib.suppress(OSError):
+                stream.close()
+    sys.exit(code)

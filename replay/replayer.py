@@ -18,8 +18,9 @@ from typing import Any
 
 import cv2
 import numpy as np
+from google.protobuf.message import DecodeError
 
-from pipemap.errors import LogFormatError, PipemapError
+from pipemap.errors import PipemapError
 from pipemap.localizer import (
     Decision,
     ImageSet,
@@ -34,7 +35,15 @@ from pipemap.recorder.messages import decode_png
 from pipemap.recorder.schemas import CompressedImage, SweepCommand
 from pipemap.replay.source import MessageSource
 
-__all__ = ["LoggedSweep", "ReplayResult", "VisitDecision", "replay", "sweeps_of", "visit_label"]
+__all__ = [
+    "LoggedSweep",
+    "ReplayResult",
+    "Sweeps",
+    "VisitDecision",
+    "replay",
+    "sweeps_of",
+    "visit_label",
+]
 
 #: A probe in the log answers a request for the same kind and move, to this much.
 _PROBE_MATCH = 1e-9
@@ -81,6 +90,8 @@ class ReplayResult:
     camera_angles: dict[int, float] = field(default_factory=dict)
     #: The image set of each visit's own sweep (probes aside), by sweep id.
     visit_sets: dict[int, ImageSet] = field(default_factory=dict)
+    #: Positions in ``visits`` before which the path is broken (a visit was lost).
+    breaks: tuple[int, ...] = ()
 
     def document(self) -> dict[str, Any]:
         """The map document, in the format of ``pipemap map --json``."""
@@ -94,52 +105,107 @@ def visit_label(visit_id: int) -> str:
     return f"{visit_id:04d}"
 
 
-def _gray(png: bytes, where: str) -> np.ndarray:
-    rgb = decode_png(png)
-    if rgb is None:
-        raise LogFormatError(f"{where}: the image is not a readable PNG")
-    return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
+@dataclass
+class Sweeps:
+    """The complete sweeps of a log, and what became of the others."""
+
+    sweeps: list[LoggedSweep] = field(default_factory=list)
+    #: One line per sweep that was skipped, or message that could not be read.
+    warnings: list[str] = field(default_factory=list)
+    #: Visits whose own sweep was skipped (an image lost, unreadable or missing).
+    lost_visits: set[int] = field(default_factory=set)
 
 
-def sweeps_of(messages: list[LogMessage], name: str = "log") -> tuple[list[LoggedSweep], list[str]]:
-    """Every complete sweep of ``messages`` (ordered ``/robot`` messages), and warnings
-    about sweeps that are not complete."""
+def _seconds(t_ns: int) -> str:
+    return f"{t_ns / 1e9:.3f} s"
+
+
+class _Sweep:
+    """A sweep being put together: its start command, its frames, what broke it."""
+
+    def __init__(self, start: Any) -> None:
+        self.start = start
+        self.frames: list[np.ndarray] = []
+        self.broken = ""
+
+    def label(self) -> str:
+        kind = f" ({self.start.probe_kind} probe)" if self.start.probe else ""
+        return f"sweep {self.start.sweep_id}{kind} of visit {self.start.visit_id}"
+
+
+def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
+    """Every complete sweep of ``messages`` (ordered ``/robot`` messages). A sweep with
+    an image that is missing, does not decode or is not a readable PNG is skipped, and
+    so is one cut off by the end of the log; each gets a warning, and the rest go on."""
     images_at: dict[int, bytes] = {}
-    sweeps: list[LoggedSweep] = []
-    warnings: list[str] = []
-    start: Any = None
-    frames: list[np.ndarray] = []
+    unreadable: dict[int, str] = {}  # log time of an image message -> why it is unusable
+    out = Sweeps()
+    current: _Sweep | None = None
+
+    def skip(sweep: _Sweep, why: str) -> None:
+        out.warnings.append(f"{name}: {sweep.label()} skipped: {why}")
+        if not sweep.start.probe:
+            out.lost_visits.add(sweep.start.visit_id)
+
     for m in messages:
         if m.topic == Topic.IMAGE:
-            image = CompressedImage.FromString(m.data)
+            try:
+                image = CompressedImage.FromString(m.data)
+            except DecodeError:
+                unreadable[m.log_time_ns] = "does not decode as foxglove.CompressedImage"
+                continue
             if image.format != "png":
-                raise LogFormatError(f"{name}: image at {m.log_time_ns} ns is {image.format!r}")
-            images_at[m.log_time_ns] = image.data
+                unreadable[m.log_time_ns] = f"is in format {image.format!r}, not png"
+            else:
+                images_at[m.log_time_ns] = image.data
         elif m.topic == Topic.SWEEP:
-            command = SweepCommand.FromString(m.data)
-            where = f"{name}: sweep {command.sweep_id}"
+            try:
+                command = SweepCommand.FromString(m.data)
+            except DecodeError:
+                out.warnings.append(
+                    f"{name}: the camera command at {_seconds(m.log_time_ns)} does not "
+                    "decode as pipemap.SweepCommand"
+                )
+                if current is not None and not current.broken:
+                    current.broken = f"a command at {_seconds(m.log_time_ns)} does not decode"
+                continue
             if command.phase == SweepCommand.START:
-                if start is not None:
-                    warnings.append(f"sweep {start.sweep_id} never ended; skipped")
-                start, frames = command, []
-            elif command.phase == SweepCommand.IMAGE and start is not None:
+                if current is not None:
+                    skip(current, "it never ended")
+                current = _Sweep(command)
+            elif command.phase == SweepCommand.IMAGE and current is not None:
+                if current.broken:
+                    continue
+                n = current.start.image_count
+                which = f"image {command.image_index + 1} of {n} ({_seconds(m.log_time_ns)})"
                 png = images_at.pop(m.log_time_ns, None)
                 if png is None:
-                    raise LogFormatError(f"{where}: no image at {m.log_time_ns} ns")
-                frames.append(_gray(png, f"{where}, image {command.image_index}"))
-            elif command.phase == SweepCommand.END and start is not None:
-                if len(frames) != start.image_count:
-                    raise LogFormatError(
-                        f"{where}: {len(frames)} images where {start.image_count} were commanded"
-                    )
+                    why = unreadable.pop(m.log_time_ns, "is missing")
+                    current.broken = f"{which} {why}"
+                    continue
+                rgb = decode_png(png)
+                if rgb is None:
+                    current.broken = f"{which} is not a readable PNG"
+                    continue
+                current.frames.append(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY))
+            elif command.phase == SweepCommand.END and current is not None:
+                sweep, current = current, None
+                if sweep.broken:
+                    skip(sweep, sweep.broken)
+                    continue
+                start = sweep.start
+                if len(sweep.frames) != start.image_count:
+                    skip(sweep, f"{len(sweep.frames)} images of the {start.image_count} commanded")
+                    continue
                 try:
                     images = ImageSet(
-                        np.stack(frames),
+                        np.stack(sweep.frames),
                         fov_rad=start.fov_rad,
                         camera_angle_rad=start.camera_angle_rad,
                     )
                 except (PipemapError, ValueError) as exc:
-                    raise LogFormatError(f"{where}: {exc}") from None
+                    skip(sweep, str(exc))
+                    continue
                 probe = None
                 if start.probe:
                     probe = (
@@ -148,13 +214,12 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> tuple[list[Logge
                         start.probe_forward_m,
                         start.probe_left_m,
                     )
-                sweeps.append(
+                out.sweeps.append(
                     LoggedSweep(command.sweep_id, start.visit_id, m.log_time_ns, images, probe)
                 )
-                start = None
-    if start is not None:
-        warnings.append(f"sweep {start.sweep_id} was cut off by the end of the log; skipped")
-    return sweeps, warnings
+    if current is not None:
+        out.warnings.append(f"{name}: {current.label()} was cut off by the end of the log; skipped")
+    return out
 
 
 class _LoggedProbes:
@@ -185,8 +250,13 @@ def replay(
 ) -> ReplayResult:
     """Feed every visit's sweep of ``source`` to a new localizer, in the robot's order."""
     messages = source.robot_messages()
-    sweeps, warnings = sweeps_of(messages, source.name)
+    found = sweeps_of(messages, source.name)
+    sweeps, warnings = found.sweeps, list(found.warnings)
     visits = [s for s in sweeps if s.probe is None]
+    # Where a visit may be lost, a jump in the visit numbers breaks the robot's path:
+    # the junctions either side of a lost visit need not be neighbours.
+    lossy = source.integrity is not Integrity.OK or bool(found.lost_visits)
+    breaks: list[int] = []
     probes: dict[int, list[LoggedSweep]] = {}
     for s in sweeps:
         if s.probe is not None:
@@ -194,6 +264,9 @@ def replay(
     localizer = Localizer(config)
     decided: list[VisitDecision] = []
     for i, sweep in enumerate(visits):
+        if lossy and i > 0 and sweep.visit_id != visits[i - 1].visit_id + 1:
+            localizer.map.lose_track()
+            breaks.append(i)
         answers = _LoggedProbes(probes.get(sweep.visit_id, []))
         start = time.perf_counter()
         decision = localizer.localize(sweep.images, answers)
@@ -211,6 +284,8 @@ def replay(
             f"{asked} probe sweep(s) asked for are not in the log; those visits were "
             "decided without them"
         )
+    if not visits:
+        warnings.append(f"{source.name}: no complete sweep of a visit in this log; an empty map")
     duration = messages[-1].log_time_ns - messages[0].log_time_ns if messages else 0
     return ReplayResult(
         visits=decided,
@@ -222,4 +297,5 @@ def replay(
         images=sum(s.images.count for s in sweeps),
         camera_angles={s.sweep_id: s.images.camera_angle_rad for s in sweeps},
         visit_sets={s.sweep_id: s.images for s in visits},
+        breaks=tuple(breaks),
     )

@@ -24,9 +24,11 @@ import statistics
 from dataclasses import dataclass
 from typing import Any
 
+from google.protobuf.message import DecodeError
+
 from pipemap.errors import LogFormatError
 from pipemap.localizer import FastConfig, LocalizerConfig, TopoMap, pairwise_matches, wrap_angle_rad
-from pipemap.recorder import Topic
+from pipemap.recorder import Integrity, Topic
 from pipemap.recorder.schemas import TrueSweep
 from pipemap.replay.replayer import ReplayResult, replay, visit_label
 from pipemap.replay.source import MessageSource
@@ -205,7 +207,10 @@ def true_sweeps(source: MessageSource) -> dict[int, TrueSweep]:
     truths = {}
     for m in source.truth():
         if m.topic == Topic.TRUE_SWEEP:
-            t = TrueSweep.FromString(m.data)
+            try:
+                t = TrueSweep.FromString(m.data)
+            except DecodeError:
+                continue  # unreadable: that sweep's truth is lost, as if damaged
             truths[t.sweep_id] = t
     if not truths:
         raise LogFormatError(f"{source.name}: no ground truth (/truth/sweep) to score against")
@@ -220,7 +225,7 @@ def pair_statistics(
     The rotation of a pair is the localizer's estimate of the turn from the first
     visit's heading to the second's; its error is against the simulator's headings.
     """
-    ids = sorted(result.visit_sets)
+    ids = sorted(i for i in result.visit_sets if i in truths)
     sets = [result.visit_sets[i] for i in ids]
     nodes = [truths[i].node for i in ids]
     headings = [truths[i].yaw_rad - s.camera_angle_rad for i, s in zip(ids, sets, strict=True)]
@@ -237,10 +242,12 @@ def pair_statistics(
     return PairStatistics(tuple(same), tuple(different), tuple(errors))
 
 
-def _map_correct(predicted: list[int], true: list[str]) -> bool:
+def _map_correct(predicted: list[int], true: list[str], breaks: set[int] | None = None) -> bool:
     """The predicted map is the true one under the visit correspondence: the same
     visits to the same junctions (one map node per true node), so the same edges in
-    the same order."""
+    the same order. ``breaks`` are the visits before which the path is broken (a
+    visit was lost); the true map is then built with the same gaps."""
+    breaks = breaks or set()
     to_true: dict[int, str] = {}
     to_predicted: dict[str, int] = {}
     for p, t in zip(predicted, true, strict=True):
@@ -248,11 +255,15 @@ def _map_correct(predicted: list[int], true: list[str]) -> bool:
             return False
     order = {label: i for i, label in enumerate(dict.fromkeys(true))}
     true_map = TopoMap()
-    for t in true:
+    for i, t in enumerate(true):
+        if i in breaks:
+            true_map.lose_track()
         true_map.visit(order[t])
     first = {node: i for i, node in enumerate(dict.fromkeys(predicted))}
     predicted_map = TopoMap()
-    for p in predicted:
+    for i, p in enumerate(predicted):
+        if i in breaks:
+            predicted_map.lose_track()
         predicted_map.visit(first[p])
     relabel = {first[p]: order[t] for p, t in to_true.items()}
     mapped = [(relabel[e.u], relabel[e.v], e.label) for e in predicted_map.edges()]
@@ -270,11 +281,22 @@ def score_replay(
     truths = true_sweeps(source)
     created: dict[int, tuple[str, float]] = {}  # map node -> (true label, true heading)
     seen: set[str] = set()
-    visits = []
-    for v in result.visits:
+    visits: list[VisitScore] = []
+    breaks: list[int] = []  # positions in ``visits`` where the path is broken
+    for i, v in enumerate(result.visits):
+        if i in result.breaks:
+            breaks.append(len(visits))
         truth = truths.get(v.sweep_id)
         if truth is None:
-            raise LogFormatError(f"{source.name}: no ground truth for sweep {v.sweep_id}")
+            if source.integrity is Integrity.OK:
+                raise LogFormatError(f"{source.name}: no ground truth for sweep {v.sweep_id}")
+            # Its truth was in a damaged part: the visit cannot be scored.
+            result.warnings.append(
+                f"{source.name}: the truth of sweep {v.sweep_id} (visit {v.visit_id}) is "
+                "lost; that visit is not scored"
+            )
+            breaks.append(len(visits))
+            continue
         d = v.decision
         heading = truth.yaw_rad - _camera_angle(result, v.sweep_id)
         if d.known:
@@ -314,7 +336,7 @@ def score_replay(
         integrity=result.integrity.value,
         threshold=threshold,
         visits=tuple(visits),
-        map_correct=bool(visits) and _map_correct(predicted, true),
+        map_correct=bool(visits) and _map_correct(predicted, true, set(breaks)),
         true_nodes=len(set(true)),
         predicted_nodes=result.topomap.node_count,
         pairs=pair_statistics(result, truths, fast),

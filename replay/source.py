@@ -16,7 +16,7 @@ from typing import Protocol
 import numpy as np
 
 from pipemap.errors import LogFormatError
-from pipemap.recorder import METADATA_RUN, Integrity, LogMessage, Topic, read_log
+from pipemap.recorder import METADATA_RUN, Integrity, LogContents, LogMessage, Topic, read_log
 from pipemap.recorder.reader import gc_paused
 from pipemap.recorder.topics import ROBOT_PREFIX
 
@@ -100,10 +100,10 @@ class FileSource:
         self._contents = read_log(self.path, keep=lambda topic: topic.startswith(keep))
         topics = {c.topic for c in self._contents.channels.values()}
         missing = [t for t in REQUIRED_TOPICS if t not in topics]
-        if missing:
+        # A whole log without the camera is not one to replay; a log cut short or
+        # damaged before its camera channels simply holds no sweep (an empty map).
+        if missing and self._contents.integrity is Integrity.OK:
             raise LogFormatError(f"{self.path}: no {', '.join(missing)} channel in this log")
-        if METADATA_RUN not in self._contents.metadata:
-            raise LogFormatError(f"{self.path}: no pipemap run metadata (cut before it?)")
         # Grouped by topic in one pass (a view wants the topics apart, a replay the
         # /robot ones together), and put in order once: a replay and a view both ask.
         self._topics = _grouped(self._contents.messages)
@@ -123,13 +123,19 @@ class FileSource:
         """What is wrong with the file, when its integrity is not ``ok``."""
         return self._contents.problem
 
+    @property
+    def contents(self) -> LogContents:
+        """The log as read: channels, counts, metadata, damage."""
+        return self._contents
+
     def robot_messages(self) -> list[LogMessage]:
         if self._robot is None:
             self._robot = ordered(_joined(self.by_topic(ROBOT_PREFIX)))
         return list(self._robot)
 
     def run_metadata(self) -> dict[str, str]:
-        return dict(self._contents.metadata[METADATA_RUN])
+        # Absent only where its record was damaged (the reader accepts that log).
+        return dict(self._contents.metadata.get(METADATA_RUN, {}))
 
     def truth(self) -> list[LogMessage]:
         if self._truth is None:

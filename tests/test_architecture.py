@@ -43,13 +43,16 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
     "pipemap.sim": ("pipemap.sim", "pipemap.errors"),
     "pipemap.recorder": (
         "pipemap.recorder",
+        "pipemap.pngcheck",
         "pipemap.sim",
         "pipemap.localizer",
         "pipemap.errors",
     ),
     "pipemap.replay": ("pipemap.replay", "pipemap.recorder", "pipemap.localizer", "pipemap.errors"),
     # Image-set folders in the paper's layout: files in, localizer image sets out.
-    "pipemap.imagesets": ("pipemap.localizer", "pipemap.errors"),
+    "pipemap.imagesets": ("pipemap.localizer", "pipemap.errors", "pipemap.pngcheck"),
+    # Byte-level checks of image formats, shared by the log and image-set readers.
+    "pipemap.pngcheck": (),
     # The Python API: what the CLI calls, and what a script or notebook imports.
     "pipemap.api": (
         "pipemap.api",
@@ -66,7 +69,7 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
 }
 
 #: Areas loaded by every layer: standard library only.
-STDLIB_ONLY = ("pipemap.errors", "pipemap")
+STDLIB_ONLY = ("pipemap.errors", "pipemap", "pipemap.pngcheck")
 
 #: The names the layers had before they moved under ``pipemap``: importing one is
 #: always wrong (installed, they do not exist).

@@ -2,7 +2,8 @@
 
 Library code raises :class:`pipemap.errors.PipemapError` for bad input; here alone
 it is caught, printed as one line naming what is wrong, and turned into exit status
-2. Any other exception is a bug and keeps its traceback. Commands import their heavy
+2 (3 for an output that could not be written whole: a full disk, a killed writer).
+Any other exception is a bug and keeps its traceback. Commands import their heavy
 dependencies lazily so that ``pipemap --help`` is instant.
 """
 
@@ -16,9 +17,15 @@ from collections.abc import Callable, Sequence
 from typing import TextIO
 
 from pipemap.cli.parser import apply_presets, build_parser
-from pipemap.errors import PipemapError
+from pipemap.errors import PipemapError, WriteError
 
-__all__ = ["main"]
+__all__ = ["BAD_INPUT", "INTERRUPTED", "WRITE_FAILED", "main"]
+
+#: Exit statuses besides 0 (done) and 1 (done, but the run or the log is incomplete:
+#: ``sim`` and ``record`` stopped short of covering the network, ``info`` found damage).
+BAD_INPUT = 2
+WRITE_FAILED = 3
+INTERRUPTED = 130
 
 
 #: A command's runner: parsed arguments, standard output, standard error -> exit status.
@@ -56,12 +63,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pipemap`` console script; returns the exit status."""
     try:
         return _run(argv)
+    except WriteError as exc:
+        print(f"pipemap: error: {exc}", file=sys.stderr)
+        return WRITE_FAILED
     except PipemapError as exc:
         print(f"pipemap: error: {exc}", file=sys.stderr)
-        return 2
+        return BAD_INPUT
     except KeyboardInterrupt:
         print("pipemap: interrupted", file=sys.stderr)
-        return 130
+        return INTERRUPTED
 
 
 if __name__ == "__main__":

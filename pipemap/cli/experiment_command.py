@@ -5,27 +5,28 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import TextIO
 
-from pipemap.errors import InputError
+from pipemap.cli.outputs import output_folder
 
 __all__ = ["run_experiment"]
 
 
-def _check_folder(folder: Path, force: bool) -> None:
+def _earlier(keep_logs: bool) -> Callable[[Path], list[str]]:
+    """What of an output folder the experiment would replace: its result files, and
+    its logs with ``--keep-logs``."""
     from pipemap.cli.experiment_report import FILES
 
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"--out {folder}: is a file, not a folder")
-    if not folder.parent.is_dir():
-        raise InputError(f"--out {folder}: folder {folder.parent} does not exist")
-    earlier = [name for name in FILES if (folder / name).exists()]
-    if earlier and not force:
-        raise InputError(
-            f"--out {folder}: holds earlier results ({earlier[0]}); refusing to replace "
-            "them without --force"
-        )
+    def found(folder: Path) -> list[str]:
+        names = [name for name in FILES if (folder / name).exists()]
+        logs = folder / "logs"
+        if keep_logs and logs.is_dir() and any(logs.iterdir()):
+            names.append("logs/")
+        return names
+
+    return found
 
 
 def run_experiment(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -34,13 +35,10 @@ def run_experiment(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stde
     from pipemap.cli.experiment import ExperimentSettings, RunOutcome, paper_experiment
     from pipemap.cli.experiment_report import write_experiment
 
-    folder = Path(args.out)
-    _check_folder(folder, args.force)
+    folder = output_folder(args.out, "--out", args.force, _earlier(args.keep_logs))
     logs = None
     if args.keep_logs:
         logs = folder / "logs"
-        if logs.exists() and any(logs.iterdir()) and not args.force:
-            raise InputError(f"--out {folder}: logs/ is not empty; refusing without --force")
         logs.mkdir(parents=True, exist_ok=True)
     settings = ExperimentSettings(args.resolution, args.seed, args.threshold)
     started = time.perf_counter()

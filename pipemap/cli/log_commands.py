@@ -9,6 +9,7 @@ where it was cut or damaged, and says which.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import signal
 import sys
@@ -59,17 +60,13 @@ def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, run the episode while writing its log, print a summary."""
+    from pipemap.cli.outputs import output_file
     from pipemap.recorder import RecordSettings, record_run
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
 
-    target = Path(args.output)
-    if target.is_dir():
-        raise InputError(f"-o {target}: is a folder, not a file")
-    if target.exists() and not args.force:
-        raise InputError(f"-o {target}: exists; refusing to overwrite without --force")
-    if not target.parent.is_dir():
-        raise InputError(f"-o {target}: folder {target.parent} does not exist")
+    target = output_file(args.output, "-o", args.force)
+    assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
     if args.start is not None and args.start not in network.labels:
         raise InputError(
@@ -120,19 +117,49 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     return 0 if result.ok else 1
 
 
+def _undecodable(messages: list[Any]) -> dict[str, int]:
+    """Messages per topic that do not decode as their topic's message type."""
+    from google.protobuf.message import DecodeError
+
+    from pipemap.recorder import TOPICS
+
+    classes = dict(TOPICS)
+    bad: dict[str, int] = {}
+    for m in messages:
+        message_class = classes.get(m.topic)
+        if message_class is None:
+            continue
+        try:
+            message_class.FromString(m.data)
+        except DecodeError:
+            bad[m.topic] = bad.get(m.topic, 0) + 1
+    return bad
+
+
 def info_document(path: Path) -> dict[str, Any]:
     """What ``pipemap info --json`` prints."""
+    from google.protobuf.message import DecodeError
+
     from pipemap.recorder import METADATA_RESULT, METADATA_RUN, Topic, read_log
     from pipemap.recorder.metadata import typed_metadata
-    from pipemap.recorder.schemas import NodeEvent, SweepCommand
+    from pipemap.recorder.schemas import NodeEvent
+    from pipemap.replay import ordered, sweeps_of
 
-    contents = read_log(path, keep=lambda topic: topic in (Topic.SWEEP, Topic.NODE))
-    sweeps = visits = 0
+    contents = read_log(path)
+    undecodable = _undecodable(contents.messages)
+    camera = [m for m in contents.messages if m.topic in (Topic.SWEEP, Topic.IMAGE)]
+    # The sweeps a replay would use: complete, with every image readable.
+    found = sweeps_of(ordered(camera), str(path))
+    visits = 0
     for m in contents.messages:
-        if m.topic == Topic.SWEEP:
-            sweeps += SweepCommand.FromString(m.data).phase == SweepCommand.START
-        else:
-            visits += NodeEvent.FromString(m.data).kind == NodeEvent.ARRIVAL
+        if m.topic == Topic.NODE:
+            with contextlib.suppress(DecodeError):  # counted as undecodable above
+                visits += NodeEvent.FromString(m.data).kind == NodeEvent.ARRIVAL
+    integrity, problem = contents.integrity.value, contents.problem
+    if undecodable:
+        lines = ", ".join(f"{topic} {count}" for topic, count in sorted(undecodable.items()))
+        integrity = "corrupt"
+        problem = "; ".join(p for p in (problem, f"messages that do not decode: {lines}") if p)
     metadata = typed_metadata(contents.metadata.get(METADATA_RUN, {}))
     result = contents.metadata.get(METADATA_RESULT)
     metadata["result"] = None if result is None else typed_metadata(result)
@@ -141,13 +168,30 @@ def info_document(path: Path) -> dict[str, Any]:
         "writer": contents.library,
         "duration_s": contents.duration_ns / 1e9,
         "messages": sum(contents.counts.values()),
-        "integrity": contents.integrity.value,
-        "problem": contents.problem or None,
+        "integrity": integrity,
+        "problem": problem or None,
+        "damage": [
+            {
+                "text": d.describe(),
+                "where": d.where,
+                "offset": d.offset,
+                "chunk": d.chunk,
+                "chunks": d.chunks,
+                "problem": d.problem,
+                "start_s": None if d.start_ns is None else d.start_ns / 1e9,
+                "end_s": None if d.end_ns is None else d.end_ns / 1e9,
+                "lost": d.lost,
+            }
+            for d in contents.damage
+        ],
+        "truncated": contents.truncated or None,
+        "undecodable": undecodable,
         "channels": [
             {"topic": c.topic, "schema": c.schema_name, "count": contents.counts.get(c.topic, 0)}
             for c in sorted(contents.channels.values(), key=lambda c: c.channel_id)
         ],
-        "sweeps": sweeps,
+        "sweeps": len(found.sweeps),
+        "sweeps_skipped": found.warnings,
         "visits": visits,
         "metadata": metadata,
     }
@@ -161,16 +205,22 @@ def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
     else:
         meta = doc["metadata"]
         result = meta.get("result") or {}
-        integrity = doc["integrity"] + (f" ({doc['problem']})" if doc["problem"] else "")
-        lines = [
-            f"file       {doc['file']}",
-            f"integrity  {integrity}",
+        lines = [f"file       {doc['file']}", f"integrity  {doc['integrity']}"]
+        for d in doc["damage"]:
+            lines.append(f"  damaged  {d['text']}")
+        if doc["truncated"]:
+            lines.append(f"  cut      {doc['truncated']}")
+        for topic, count in sorted(doc["undecodable"].items()):
+            lines.append(f"  unreadable {count} message(s) on {topic} do not decode")
+        skipped = doc["sweeps_skipped"]
+        lines += [
             f"duration   {doc['duration_s']:.3f} s simulated",
             f"messages   {doc['messages']}",
             f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
             f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
             f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images",
-            f"sweeps     {doc['sweeps']} in {doc['visits']} node visits",
+            f"sweeps     {doc['sweeps']} complete in {doc['visits']} node visits"
+            + (f" ({len(skipped)} skipped by a replay)" if skipped else ""),
             f"result     {result.get('status', 'none recorded')}",
             f"written by {doc['writer']}, log format {meta.get('format_version', '?')}",
             "channels",
@@ -179,5 +229,6 @@ def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
         schema_width = max((len(c["schema"]) for c in doc["channels"]), default=0)
         for c in doc["channels"]:
             lines.append(f"  {c['topic']:<{width}}  {c['schema']:<{schema_width}}  {c['count']:>8}")
+        lines += [f"  skipped  {line}" for line in skipped]
         out.write("\n".join(lines) + "\n")
     return 1 if doc["integrity"] == "corrupt" else 0

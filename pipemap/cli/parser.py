@@ -277,6 +277,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_run_options(p_sim, "perfect")
     p_sim.add_argument("--save-sweeps", required=True, metavar="DIR", help="new or empty folder")
+    p_sim.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the sweep folders (0001, 0002, ...) of an earlier run in DIR",
+    )
 
     p_record = sub.add_parser(
         "record",
@@ -362,7 +367,10 @@ def build_parser() -> argparse.ArgumentParser:
                 "--save-results",
                 default=None,
                 metavar="DIR",
-                help="write score.json and visits.csv to this new folder",
+                help="write score.json and visits.csv to this new or empty folder",
+            )
+            p_log.add_argument(
+                "--force", action="store_true", help="replace the files of an earlier score"
             )
 
     p_exp = sub.add_parser(

@@ -2,7 +2,9 @@
 
 Both read the log's ``/robot`` messages only for the localizer; ``score`` also reads
 ``/truth`` to compare. A log cut short is replayed up to its last complete sweep,
-with a warning, and exit 0. A wrong map is a result, not an error: exit 0.
+with a warning, and exit 0; so is a damaged one, every sweep of its intact parts,
+with a warning naming each damaged part and each sweep skipped. A wrong map is a
+result, not an error: exit 0.
 """
 
 from __future__ import annotations
@@ -12,11 +14,11 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+from pipemap.cli.outputs import output_file, output_folder, write_text
 from pipemap.cli.parser import fast_config, two_view_settings
-from pipemap.errors import InputError
+from pipemap.errors import WriteError
 
 __all__ = [
-    "check_output",
     "localizer_config",
     "open_source",
     "progress_printer",
@@ -48,16 +50,13 @@ def open_source(args: argparse.Namespace, err: TextIO) -> Any:
     from pipemap.replay import FileSource
 
     source = FileSource(Path(args.log))
-    if source.integrity is Integrity.TRUNCATED:
-        err.write(
-            f"pipemap: warning: {args.log} is cut short ({source.problem}); "
-            "replaying its complete part\n"
-        )
-    elif source.integrity is Integrity.CORRUPT:
-        err.write(
-            f"pipemap: warning: {args.log} is damaged ({source.problem}); "
-            "replaying what came before the damage\n"
-        )
+    contents = source.contents
+    for damage in contents.damage:
+        err.write(f"pipemap: warning: {args.log}: damaged {damage.describe()}\n")
+    if contents.truncated:
+        err.write(f"pipemap: warning: {args.log} is cut short: {contents.truncated}\n")
+    if source.integrity is not Integrity.OK:
+        err.write(f"pipemap: warning: {args.log}: replaying every sweep its intact parts hold\n")
     return source
 
 
@@ -75,27 +74,13 @@ def progress_printer(err: TextIO) -> Any:
     return show
 
 
-def check_output(path: str | None, force: bool) -> Path | None:
-    """``path`` as a file that may be written (refused if it exists, unless ``force``)."""
-    if path is None:
-        return None
-    target = Path(path)
-    if target.is_dir():
-        raise InputError(f"{target}: is a folder, not a file")
-    if not target.parent.is_dir():
-        raise InputError(f"{target}: folder {target.parent} does not exist")
-    if target.exists() and not force:
-        raise InputError(f"{target}: exists; refusing to overwrite without --force")
-    return target
-
-
 def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log and write its map document."""
     from pipemap.localizer import dumps_document
     from pipemap.replay import replay
 
-    target = check_output(args.output, args.force)
-    graphml = check_output(args.graphml, args.force)
+    target = output_file(args.output, "-o", args.force)
+    graphml = output_file(args.graphml, "--graphml", args.force)
     config = localizer_config(args)
     source = open_source(args, err)
     result = replay(source, config, progress_printer(err))
@@ -105,7 +90,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     if target is None:
         out.write(text)
     else:
-        target.write_text(text)
+        write_text(target, text)
         out.write(
             f"replayed {args.log}: {len(result.visits)} visits, {result.topomap.node_count} "
             f"junctions, map written to {target}\n"
@@ -113,7 +98,10 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     if graphml is not None:
         import networkx as nx  # 0.09 s to import: only for GraphML
 
-        nx.write_graphml(result.topomap.graph, graphml)
+        try:
+            nx.write_graphml(result.topomap.graph, graphml)
+        except OSError as exc:
+            raise WriteError(f"{graphml}: cannot write ({exc.strerror or exc})") from None
     return 0
 
 
@@ -123,17 +111,20 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
 
     folder = None
     if args.save_results is not None:
-        folder = Path(args.save_results)
-        if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
-            raise InputError(f"{folder}: exists and is not an empty folder; refusing to overwrite")
+        folder = output_folder(args.save_results, "--save-results", args.force)
     config = localizer_config(args)
     source = open_source(args, err)
     result = replay(source, config, progress_printer(err))
     report = score_replay(result, source, config.threshold, config.fast)
+    for warning in result.warnings:
+        err.write(f"pipemap: note: {warning}\n")
     if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
-        (folder / "score.json").write_text(report.json_text())
-        (folder / "visits.csv").write_text(report.csv_text())
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise WriteError(f"{folder}: cannot make the folder ({exc.strerror})") from None
+        write_text(folder / "score.json", report.json_text())
+        write_text(folder / "visits.csv", report.csv_text())
     if args.json:
         out.write(report.json_text())
         return 0

@@ -12,6 +12,8 @@ themselves).
 from __future__ import annotations
 
 import argparse
+import re
+import shutil
 import sys
 from pathlib import Path
 from typing import TextIO
@@ -19,10 +21,14 @@ from typing import TextIO
 import cv2
 import numpy as np
 
-from pipemap.errors import InputError
+from pipemap.cli.outputs import output_folder
+from pipemap.errors import InputError, WriteError
 from pipemap.imagesets import write_image_set
 
 __all__ = ["run_sim"]
+
+#: The folders of one run's sweeps: ``0001``, ``0002``, ...
+_SWEEP_FOLDER = re.compile(r"\d{4}")
 
 
 def _info(pose: object, node: str) -> dict[str, str]:
@@ -42,15 +48,28 @@ def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float):  # t
     return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
 
 
+def _earlier_sweeps(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.iterdir() if p.is_dir() and _SWEEP_FOLDER.fullmatch(p.name))
+
+
+def _clear_earlier_sweeps(target: Path) -> None:
+    """Make the folder; with ``--force`` an earlier run's sweep folders go first, so
+    that ``pipemap map DIR/*`` sees this run's alone (other files are left)."""
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+        for folder in _earlier_sweeps(target):
+            shutil.rmtree(folder)
+    except OSError as exc:
+        raise WriteError(f"--save-sweeps {target}: {exc.strerror or exc}") from None
+
+
 def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, build the world, run the episode, write the sweeps, print a summary."""
     from pipemap.sim.episode import Condition, Episode, SimConfig
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
 
-    target = Path(args.save_sweeps)
-    if target.exists() and (not target.is_dir() or any(target.iterdir())):
-        raise InputError(f"{target}: exists and is not an empty folder; refusing to overwrite")
+    target = output_folder(args.save_sweeps, "--save-sweeps", args.force)
     network = build_network(args.network, seed=args.seed)
     condition = Condition(args.condition)
     if args.start is not None and args.start not in network.labels:
@@ -65,7 +84,7 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         images_per_sweep=args.images,
         align_sweeps=args.align_sweeps,
     )
-    target.mkdir(parents=True, exist_ok=True)
+    _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
         return _run_autonomous(args, network, camera, target, out)
     with World(network, seed=args.seed) as world:

@@ -27,12 +27,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, TextIO
 
-from pipemap.cli.replay_commands import (
-    check_output,
-    localizer_config,
-    open_source,
-    progress_printer,
-)
+from pipemap.cli.outputs import output_file
+from pipemap.cli.replay_commands import localizer_config, open_source, progress_printer
 from pipemap.errors import InputError, ViewerError
 
 if TYPE_CHECKING:
@@ -48,7 +44,7 @@ _DISPLAY_VARIABLES = ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")
 
 
 def _target(args: argparse.Namespace) -> Path | None:
-    target = check_output(args.save, args.force)
+    target = output_file(args.save, "--save", args.force)
     if target is not None and target.suffix != RRD_SUFFIX:
         raise InputError(f"{target}: a rerun recording is saved as a {RRD_SUFFIX} file")
     return target
@@ -72,7 +68,7 @@ def check_view_target(log: Path, save: bool, force: bool) -> Path | None:
     if not save:
         _check_display()
         return None
-    return check_output(str(log.with_suffix(RRD_SUFFIX)), force)
+    return output_file(str(log.with_suffix(RRD_SUFFIX)), "--save", force)
 
 
 def _summary(name: str, result: ReplayResult) -> str:

@@ -98,11 +98,9 @@ def test_every_bit_flip_after_the_header_is_caught(
     assert missed == []
 
 
-def test_a_corrupt_log_keeps_what_came_before_the_damage(
-    tmp_path: Path, synthetic: tuple[Path, list[str]]
-) -> None:
-    data = bytearray(synthetic[0].read_bytes())
-    chunks = []  # (start, end) of each chunk record's body
+def _chunks(data: bytes | bytearray) -> list[tuple[int, int]]:
+    """(start, end) of each chunk record's body, in file order."""
+    chunks = []
     position = 8
     while position < len(data) - 8:
         opcode, length = struct.unpack_from("<BQ", data, position)
@@ -111,16 +109,51 @@ def test_a_corrupt_log_keeps_what_came_before_the_damage(
         if opcode == Opcode.FOOTER:
             break
         position += 9 + length
-    start, end = chunks[len(chunks) // 2]
-    data[(start + end) // 2] ^= 0xFF  # inside a chunk's compressed messages
+    return chunks
+
+
+@pytest.mark.parametrize("where", ["data", "length"])
+def test_a_damaged_chunk_loses_only_itself_and_says_what_it_held(
+    tmp_path: Path, synthetic: tuple[Path, list[str]], where: str
+) -> None:
+    data = bytearray(synthetic[0].read_bytes())
+    chunks = _chunks(data)
+    number = len(chunks) // 2
+    start, end = chunks[number]
+    if where == "data":
+        data[(start + end) // 2] ^= 0xFF  # inside the chunk's compressed messages
+    else:
+        data[start - 8 + 5] ^= 0x40  # the chunk record's own length: the framing is lost
     damaged = tmp_path / "damaged.mcap"
     damaged.write_bytes(bytes(data))
     contents = read_log(damaged)
     assert contents.integrity is Integrity.CORRUPT
     whole = read_log(synthetic[0]).messages
-    assert 0 < len(contents.messages) < len(whole)
-    assert contents.messages == whole[: len(contents.messages)]
-    assert "byte" in contents.problem
+    [damage] = [d for d in contents.damage if d.chunk is not None]
+    assert (damage.chunk, damage.chunks) == (number + 1, len(chunks))
+    assert f"chunk {number + 1} of {len(chunks)}" in contents.problem
+    # Exactly the chunk's messages are missing, in one stretch; it says how many per topic.
+    kept = contents.messages
+    lost = len(whole) - len(kept)
+    assert lost == sum(damage.lost.values()) > 0
+    first = next(i for i, (a, b) in enumerate(zip(whole, kept, strict=False)) if a != b)
+    assert kept == whole[:first] + whole[first + lost :]
+    missing = whole[first : first + lost]
+    assert damage.start_ns == missing[0].log_time_ns and damage.end_ns == missing[-1].log_time_ns
+    assert {t: sum(m.topic == t for m in missing) for t in damage.lost} == damage.lost
+
+
+@pytest.mark.parametrize("missing", [1, 8])
+def test_a_log_missing_its_last_bytes_is_truncated_not_corrupt(
+    tmp_path: Path, synthetic: tuple[Path, list[str]], missing: int
+) -> None:
+    data = synthetic[0].read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:-missing])
+    contents = read_log(cut)
+    assert contents.integrity is Integrity.TRUNCATED, contents.problem
+    assert "closing magic" in contents.problem
+    assert contents.messages == read_log(synthetic[0]).messages
 
 
 @pytest.mark.parametrize(
@@ -129,6 +162,11 @@ def test_a_corrupt_log_keeps_what_came_before_the_damage(
         (b"", "empty file"),
         (b"this is not a log at all, just text\n" * 20, "not an MCAP file"),
         (b"\x89MCAP0\r\n", "cut short before its header"),
+        (b"\x89MCA", "cut short inside its magic"),
+        (
+            b"\x89MCAP0\r\n\x01\x05\x00\x00\x00\x00\x00\x00\x00\xff\xff\xff\xff\xff",
+            "MCAP header is malformed: a field runs past the end of its record",
+        ),
     ],
 )
 def test_garbage_is_refused(tmp_path: Path, content: bytes, message: str) -> None:
@@ -144,7 +182,10 @@ def test_another_programs_mcap_is_refused(tmp_path: Path) -> None:
         writer = McapWriter(f)
         writer.start(profile="", library="someone-else 1.0")
         writer.finish()
-    with pytest.raises(LogFormatError, match="written by someone-else 1.0, not a pipemap log"):
+    with pytest.raises(
+        LogFormatError,
+        match=r"not a pipemap log: no pipemap.run metadata \(an MCAP file written by someone-else",
+    ):
         read_log(path)
 
 

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -216,7 +219,9 @@ def test_a_killed_recording_is_closed_by_its_writer(tmp_path: Path) -> None:
     target = tmp_path / "killed.mcap"
     process = _start_long_recording(target)
     process.kill()  # SIGKILL: no handler runs in the recording process
-    process.wait(timeout=60)
+    # The writer holds the same stderr: it is read to its end once the writer is done.
+    _, err = process.communicate(timeout=120)
+    assert "Traceback" not in err and err == ""
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:  # the writer process finishes on its own
         contents = read_log(target)
@@ -226,3 +231,63 @@ def test_a_killed_recording_is_closed_by_its_writer(tmp_path: Path) -> None:
     assert contents.integrity is Integrity.OK, contents.problem
     assert contents.metadata[METADATA_RESULT]["status"].startswith("lost its run")
     assert contents.counts[Topic.IMAGE] > 0
+
+
+def _writer_of(process: subprocess.Popen[str]) -> int:
+    children = Path(f"/proc/{process.pid}/task/{process.pid}/children")
+    if not children.exists():
+        process.kill()
+        pytest.skip("no /proc/PID/task/PID/children here: cannot find the writer process")
+    [writer] = [int(pid) for pid in children.read_text().split()]
+    return writer
+
+
+def test_a_killed_writer_is_a_crash_exit_3_and_the_log_stays_readable(tmp_path: Path) -> None:
+    target = tmp_path / "crashed.mcap"
+    process = _start_long_recording(target)
+    os.kill(_writer_of(process), signal.SIGKILL)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 3, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "the log writer process was killed (SIGKILL)" in err and str(target) in err
+    contents = read_log(target)
+    assert contents.integrity is Integrity.TRUNCATED
+    assert contents.counts[Topic.IMAGE] > 0
+
+
+def test_a_full_disk_is_a_crash_exit_3_in_one_line() -> None:
+    done = pipemap("record", *SMALL_RUN, "-o", "/dev/full", "--force")
+    assert done.returncode == 3, done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
+    assert "writing /dev/full failed: No space left on device" in done.stderr
+
+
+@pytest.fixture
+def small_disk(tmp_path: Path) -> Iterator[Path]:
+    """A 400 kB file system, mounted for the test (root only)."""
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a small tmpfs needs root and mount(8)")
+    folder = tmp_path / "small"
+    folder.mkdir()
+    done = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(folder)], capture_output=True
+    )
+    if done.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {done.stderr.decode().strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=True)
+
+
+def test_a_disk_that_fills_keeps_every_complete_sweep_readable(small_disk: Path) -> None:
+    target = small_disk / "run.mcap"
+    done = pipemap("record", *SMALL_RUN, "-o", str(target))
+    assert done.returncode == 3, done.stderr
+    assert done.stderr.count("\n") == 1 and "No space left on device" in done.stderr
+    info = pipemap("info", "--json", str(target))
+    assert info.returncode == 0, info.stderr
+    doc = json.loads(info.stdout)
+    assert doc["integrity"] == "truncated" and doc["sweeps"] >= 1
+    replayed = pipemap("replay", str(target))
+    assert replayed.returncode == 0 and len(json.loads(replayed.stdout)["visits"]) == doc["sweeps"]

@@ -137,7 +137,25 @@ def _no_camera(path: Path) -> None:
     with path.open("wb") as f:
         writer = McapWriter(f)
         writer.start(profile="", library="pipemap 0.1.0")
-        writer.add_metadata(METADATA_RUN, {"network": "paper"})
+        writer.add_metadata(METADATA_RUN, {"format_version": "1", "network": "paper"})
+        writer.finish()
+
+
+def _json_camera(path: Path) -> None:
+    with path.open("wb") as f:
+        writer = McapWriter(f)
+        writer.start(profile="", library="a-robot")
+        writer.add_metadata(METADATA_RUN, {"format_version": "1"})
+        schema = writer.register_schema("pipemap.SweepCommand", "jsonschema", b"{}")
+        writer.register_channel("/robot/camera/sweep", "json", schema)
+        writer.finish()
+
+
+def _future_version(path: Path) -> None:
+    with path.open("wb") as f:
+        writer = McapWriter(f)
+        writer.start(profile="", library="pipemap 9.0")
+        writer.add_metadata(METADATA_RUN, {"format_version": "2"})
         writer.finish()
 
 
@@ -148,6 +166,8 @@ def _no_camera(path: Path) -> None:
         (lambda p: p.write_bytes(b""), "empty file"),
         (_foreign, "written by another-robot 2.0"),
         (_no_camera, "no /robot/camera/sweep, /robot/camera/image channel"),
+        (_json_camera, "(/robot/camera/sweep) has json messages, schema pipemap.SweepCommand"),
+        (_future_version, "log format version '2' in pipemap.run; this pipemap reads version '1'"),
     ],
 )
 @pytest.mark.parametrize("command", ["replay", "score"])
