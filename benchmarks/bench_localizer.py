@@ -15,7 +15,8 @@ Usage: ``python benchmarks/bench_localizer.py [--sets DIR] [--reference-pairs K]
 [--write-reference FILE]``, or ``--json`` for the decision benchmark alone: the
 shared sets at 400 px as queries, decided at the defaults (two-view check included)
 by a localizer that knows 10, 100 and 1000 junctions (augmented copies), one core;
-wall and CPU time per decision and the memory kept per known junction. Agreement is measured against the stored reference
+wall and CPU time per decision and the memory kept per known junction.
+Agreement is measured against the stored reference
 values of all 55 pairs (``tests/localizer/data/paper_reference.json``, which a test
 keeps current); the reference is timed on K pairs (default 3). ``--write-reference``
 recomputes and writes all 55 (a few minutes).
@@ -107,7 +108,9 @@ def decision_benchmark(sets: dict[str, ImageSet], sizes: list[int], px: int) -> 
             images = augmented_set(queries, rng).images[:, :, ::-1]
             distractor = ImageSet(np.rint(images))
             localizer._matcher.add(localizer._matcher.prepare(distractor))
-            localizer._features.append(stored_features(distractor, localizer.config.two_view_config))
+            localizer._features.append(
+                stored_features(distractor, localizer.config.two_view_config)
+            )
             localizer.map.visit(len(localizer._features) - 1)
         walls, cpus = [], []
         for query in queries:
@@ -179,7 +182,11 @@ def main() -> int:
     if args.json:
         names = sorted(p.name for p in args.sets.iterdir() if p.is_dir())
         sets = {n: load_image_set(args.sets / n) for n in names}
-        sizes = [10, 100, 1000] if args.sizes == "1,10,100,1000" else [int(x) for x in args.sizes.split(",")]
+        sizes = (
+            [10, 100, 1000]
+            if args.sizes == "1,10,100,1000"
+            else [int(x) for x in args.sizes.split(",")]
+        )
         print(json.dumps(decision_benchmark(sets, sizes, args.px), indent=2))
         return 0
 
@@ -244,7 +251,8 @@ def main() -> int:
         info,
     )
     _agreement(
-        f"all {len(ref)} pairs, `pipemap match` and the localizer (best junction refined at every offset)",
+        f"all {len(ref)} pairs, `pipemap match` and the localizer "
+        "(best junction refined at every offset)",
         {k: match_prepared(*k) for k in ref},
         ref,
         info,
