@@ -15,7 +15,8 @@ Usage: ``python benchmarks/bench_localizer.py [--sets DIR] [--reference-pairs K]
 [--write-reference FILE]``, or ``--json`` for the decision benchmark alone: the
 shared sets at 400 px as queries, decided at the defaults (two-view check included)
 by a localizer that knows 10, 100 and 1000 junctions (augmented copies), one core;
-wall and CPU time per decision and the memory kept per known junction. Agreement is measured against the stored reference
+wall and CPU time per decision and the memory kept per known junction.
+Agreement is measured against the stored reference
 values of all 55 pairs (``tests/localizer/data/paper_reference.json``, which a test
 keeps current); the reference is timed on K pairs (default 3). ``--write-reference``
 recomputes and writes all 55 (a few minutes).
@@ -250,7 +251,8 @@ def main() -> int:
         info,
     )
     _agreement(
-        f"all {len(ref)} pairs, `pipemap match` and the localizer (best junction refined at every offset)",
+        f"all {len(ref)} pairs, `pipemap match` and the localizer "
+        "(best junction refined at every offset)",
         {k: match_prepared(*k) for k in ref},
         ref,
         info,

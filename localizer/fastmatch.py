@@ -13,15 +13,16 @@ stages, both validated against the reference on the paper's own image sets
    a multiplication by precomputed inverse window norms. Cheap, biased, good
    enough to rank: it never decides (see :func:`localizer.localizer.best_candidate`).
 2. **Refine** the ``refine_candidates`` best junctions: the best at its
-   ``refine_offsets`` most promising cyclic offsets (all of them by default), the others (which only set the
-   margin) at their ``runner_up_offsets`` best. Images are at the paper's quarter
-   scale (``fine_downsample``, :func:`localizer.similarity.paper_scaled`, the very
-   pixels the reference sees), the full "same" range of vertical and horizontal
-   shifts is searched by 2-D FFT, so the peak value is the reference's up to float32
-   rounding; a parabola through the peak's neighbours gives a sub-pixel column shift
-   (the reference reports whole pixels). Views of one junction from different
-   entries differ by tens of pixels vertically (robot pitch and roll turn with the
-   camera), so the accurate stage must not restrict the vertical search.
+   ``refine_offsets`` most promising cyclic offsets (all of them by default), the
+   others (which only set the margin) at their ``runner_up_offsets`` best. Images
+   are at the paper's quarter scale (``fine_downsample``,
+   :func:`localizer.similarity.paper_scaled`: the very pixels the reference sees).
+   The full "same" range of vertical and horizontal shifts is searched by 2-D FFT,
+   so the peak value is the reference's up to float32 rounding; a parabola through
+   the peak's neighbours gives a sub-pixel column shift (the reference reports whole
+   pixels). Views of one junction from different entries differ by tens of pixels
+   vertically (robot pitch and roll turn with the camera), so the accurate stage
+   must not restrict the vertical search.
 
 Junctions not refined keep their screening match (``SetMatch.refined`` is False).
 Everything that depends on one image set alone is computed once, when the set is
@@ -182,10 +183,12 @@ def _area_downsampled(images: np.ndarray, row_factor: int, col_factor: int) -> n
 def _fine_scaled(images: np.ndarray, config: FastConfig) -> np.ndarray:
     """The refinement's images: the paper's quarter scale, or plain decimation."""
     if config.paper_resampling:
-        return paper_scaled(images, config.fine_downsample)
-    rows = max(1, min(6, images.shape[1] // 2))
+        scaled: np.ndarray = paper_scaled(images, config.fine_downsample)
+        return scaled
+    rows = max(1, min(6, images.shape[1] // 2))  # the old fine_row_downsample
     cols = max(1, min(config.fine_downsample, images.shape[2] // 2))
-    return np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float64)
+    decimated: np.ndarray = np.ascontiguousarray(images[:, ::rows, ::cols], dtype=np.float64)
+    return decimated
 
 
 def _high_passed(image_set: ImageSet, sigma_px: float) -> ImageSet:

@@ -406,7 +406,6 @@ def fit_two_view(
     centres = [_azimuth_peak(a, b)] + ([] if guess_rad is None else [guess_rad])
     rotations = np.concatenate([centre + offsets for centre in centres])
     directions = np.linspace(0.0, math.pi, config.direction_steps, endpoint=False)
-    cos_d, sin_d = np.cos(directions)[:, None], np.sin(directions)[:, None]
     counts = _grid_counts(a, b, rotations, config.direction_steps, tolerance)
     per_rotation = counts.max(axis=1)
     r = int(np.argmax(per_rotation))  # the first best rotation, its first best direction

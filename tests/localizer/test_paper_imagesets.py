@@ -107,7 +107,7 @@ def test_the_threshold_separates_same_from_different_junctions(fast, paper_sets,
     assert max(different) < DEFAULT_THRESHOLD - 0.02
     assert min(same.values()) >= DEFAULT_THRESHOLD + 0.01
     assert reference[("1_active", "2_noise")]["similarity"] == pytest.approx(0.373, abs=0.0005)
-    for k, v in same.items():
+    for k in same:
         assert reference[k]["similarity"] >= DEFAULT_THRESHOLD, k
 
 
