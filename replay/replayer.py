@@ -141,6 +141,7 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
     unreadable: dict[int, str] = {}  # log time of an image message -> why it is unusable
     out = Sweeps()
     current: _Sweep | None = None
+    undecodable = 0  # camera commands that do not decode
 
     def skip(sweep: _Sweep, why: str) -> None:
         out.warnings.append(f"{name}: {sweep.label()} skipped: {why}")
@@ -162,10 +163,7 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
             try:
                 command = SweepCommand.FromString(m.data)
             except DecodeError:
-                out.warnings.append(
-                    f"{name}: the camera command at {_seconds(m.log_time_ns)} does not "
-                    "decode as pipemap.SweepCommand"
-                )
+                undecodable += 1
                 if current is not None and not current.broken:
                     current.broken = f"a command at {_seconds(m.log_time_ns)} does not decode"
                 continue
@@ -219,6 +217,11 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
                 )
     if current is not None:
         out.warnings.append(f"{name}: {current.label()} was cut off by the end of the log; skipped")
+    if undecodable:
+        out.warnings.append(
+            f"{name}: {undecodable} camera command(s) do not decode as pipemap.SweepCommand; "
+            "their sweeps are lost"
+        )
     return out
 
 
@@ -255,7 +258,7 @@ def replay(
     visits = [s for s in sweeps if s.probe is None]
     # Where a visit may be lost, a jump in the visit numbers breaks the robot's path:
     # the junctions either side of a lost visit need not be neighbours.
-    lossy = source.integrity is not Integrity.OK or bool(found.lost_visits)
+    lossy = source.integrity is not Integrity.OK or bool(found.warnings)
     breaks: list[int] = []
     probes: dict[int, list[LoggedSweep]] = {}
     for s in sweeps:

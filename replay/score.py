@@ -278,7 +278,7 @@ def score_replay(
 ) -> ScoreReport:
     """Compare a replay's decisions with the log's truth; ``fast`` is the matcher's
     configuration for the pair statistics (the replay's own, by default)."""
-    truths = true_sweeps(source)
+    truths = true_sweeps(source) if result.visits else {}
     created: dict[int, tuple[str, float]] = {}  # map node -> (true label, true heading)
     seen: set[str] = set()
     visits: list[VisitScore] = []

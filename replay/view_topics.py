@@ -17,7 +17,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from google.protobuf.message import DecodeError
 
+from pipemap.errors import LogFormatError
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.schemas import (
     CompressedImage,
@@ -31,7 +33,7 @@ from pipemap.recorder.schemas import (
     SweepCommand,
     WheelEncoders,
 )
-from pipemap.replay.wire import Columns, decode_columns, spec_of
+from pipemap.replay.wire import Columns, FieldSpec, decode_columns, spec_of
 
 if TYPE_CHECKING:
     import rerun as rr
@@ -102,7 +104,36 @@ def _columns(
         order = np.argsort(times, kind="stable")
         times, messages = times[order], [messages[i] for i in order]
     spec = spec_of(message_type.DESCRIPTOR, only=names)
-    return times, decode_columns(list(map(_DATA, messages)), spec)
+    try:
+        return times, decode_columns(list(map(_DATA, messages)), spec)
+    except LogFormatError:
+        # A payload that is not this message type (damaged, or another writer's bug):
+        # show the others, as a replay skips what it cannot read.
+        keep = [i for i, m in enumerate(messages) if _columns_of_one(m.data, spec)]
+        kept = [messages[i] for i in keep]
+        return times[keep], decode_columns(list(map(_DATA, kept)), spec)
+
+
+def _columns_of_one(payload: bytes, spec: FieldSpec) -> bool:
+    try:
+        decode_columns([payload], spec)
+    except LogFormatError:
+        return False
+    return True
+
+
+def _decoded(message_type: Any, message: LogMessage) -> Any:
+    """``message`` decoded as ``message_type``, or ``None`` where it does not decode."""
+    try:
+        return message_type.FromString(message.data)
+    except DecodeError:
+        return None
+
+
+def _all_decoded(message_type: Any, messages: list[LogMessage]) -> list[tuple[LogMessage, Any]]:
+    """The messages that decode as ``message_type``, with their decoded message."""
+    pairs = [(m, _decoded(message_type, m)) for m in messages]
+    return [(m, d) for m, d in pairs if d is not None]
 
 
 def _series(
@@ -121,11 +152,11 @@ def log_truth(rec: rr.RecordingStream, truth: dict[str, list[LogMessage]]) -> No
     """The network (static) and the robot's true pose, with its trajectory so far."""
     import rerun as rr
 
-    for message in truth.get(Topic.NETWORK, [])[:1]:
+    for _, scene in _all_decoded(SceneUpdate, truth.get(Topic.NETWORK, []))[:1]:
         strips: list[list[tuple[float, float, float]]] = []
         positions: list[tuple[float, float, float]] = []
         labels: list[str] = []
-        for entity in SceneUpdate.FromString(message.data).entities:
+        for entity in scene.entities:
             for line in entity.lines:
                 strips.append([(p.x, p.y, p.z) for p in line.points])
             for sphere in entity.spheres:
@@ -231,21 +262,22 @@ def _log_camera(
 ) -> None:
     import rerun as rr
 
-    images = messages.get(Topic.IMAGE, [])
+    images = _all_decoded(CompressedImage, messages.get(Topic.IMAGE, []))
     if images:
-        decoded = [CompressedImage.FromString(m.data) for m in images]
+        decoded = [image for _, image in images]
         rec.send_columns(
             "camera/image",
-            indexes=[time_column([m.log_time_ns for m in images])],
+            indexes=[time_column([m.log_time_ns for m, _ in images])],
             columns=rr.EncodedImage.columns(
                 blob=[i.data for i in decoded], media_type=[f"image/{i.format}" for i in decoded]
             ),
         )
-    sweeps = messages.get(Topic.SWEEP, [])
-    if not sweeps:
+    sweep_commands = _all_decoded(SweepCommand, messages.get(Topic.SWEEP, []))
+    if not sweep_commands:
         return
+    sweeps = [m for m, _ in sweep_commands]
     # The camera's direction from a sweep's start to its end; nothing in between sweeps.
-    commands = [SweepCommand.FromString(m.data) for m in sweeps]
+    commands = [command for _, command in sweep_commands]
     shown = [c for c in commands if c.phase != SweepCommand.END]
     vectors = [(math.cos(c.camera_angle_rad), math.sin(c.camera_angle_rad), 0.0) for c in shown]
     labels = [f"sweep {c.sweep_id}" + (f" ({c.probe_kind})" if c.probe else "") for c in shown]
@@ -265,12 +297,10 @@ def _log_events(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) 
     import rerun as rr
 
     rows: list[tuple[int, str, str]] = []
-    for m in messages.get(Topic.EVENTS, []):
-        event = Log.FromString(m.data)
+    for m, event in _all_decoded(Log, messages.get(Topic.EVENTS, [])):
         level = "WARN" if event.level >= Log.Level.WARNING else "INFO"
         rows.append((m.log_time_ns, event.message, level))
-    for m in messages.get(Topic.NODE, []):
-        node = NodeEvent.FromString(m.data)
+    for m, node in _all_decoded(NodeEvent, messages.get(Topic.NODE, [])):
         if node.kind == NodeEvent.ARRIVAL:
             text = f"visit {node.visit_id}: arrived at a node"
         else:
