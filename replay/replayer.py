@@ -34,7 +34,15 @@ from pipemap.recorder.messages import decode_png
 from pipemap.recorder.schemas import CompressedImage, SweepCommand
 from pipemap.replay.source import MessageSource
 
-__all__ = ["LoggedSweep", "ReplayResult", "VisitDecision", "replay", "sweeps_of", "visit_label"]
+__all__ = [
+    "LoggedSweep",
+    "ReplayResult",
+    "VisitDecision",
+    "answer_probes",
+    "replay",
+    "sweeps_of",
+    "visit_label",
+]
 
 #: A probe in the log answers a request for the same kind and move, to this much.
 _PROBE_MATCH = 1e-9
@@ -178,6 +186,16 @@ class _LoggedProbes:
         return None
 
 
+def answer_probes(
+    localizer: Localizer, images: ImageSet, probes: list[LoggedSweep]
+) -> tuple[Decision, int]:
+    """``localizer``'s decision for a visit's ``images``, its probe requests answered
+    from the visit's logged ``probes``; and how many requests the log could not answer."""
+    answers = _LoggedProbes(probes)
+    decision = localizer.localize(images, answers)
+    return decision, answers.not_in_log
+
+
 def replay(
     source: MessageSource,
     config: LocalizerConfig | None = None,
@@ -194,14 +212,11 @@ def replay(
     localizer = Localizer(config)
     decided: list[VisitDecision] = []
     for i, sweep in enumerate(visits):
-        answers = _LoggedProbes(probes.get(sweep.visit_id, []))
         start = time.perf_counter()
-        decision = localizer.localize(sweep.images, answers)
+        decision, missing = answer_probes(localizer, sweep.images, probes.get(sweep.visit_id, []))
         latency = time.perf_counter() - start
         decided.append(
-            VisitDecision(
-                sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, answers.not_in_log
-            )
+            VisitDecision(sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, missing)
         )
         if progress is not None:
             progress(i + 1, len(visits))
