@@ -14,7 +14,13 @@ from pipemap.recorder.reader import Integrity, LogChannel, LogContents, LogMessa
 from pipemap.recorder.topics import FORMAT_VERSION, METADATA_RESULT, METADATA_RUN, TOPICS, Topic
 
 if TYPE_CHECKING:
-    from pipemap.recorder.session import Progress, RecordResult, RecordSettings, record_run
+    from pipemap.recorder.session import (
+        Progress,
+        RecordResult,
+        RecordSettings,
+        RunObserver,
+        record_run,
+    )
     from pipemap.recorder.writer import LogWriter
 
 #: Loaded on first use (PEP 562): recording pulls in the simulator, which a command
@@ -23,6 +29,7 @@ _LAZY = {
     "Progress": "pipemap.recorder.session",
     "RecordResult": "pipemap.recorder.session",
     "RecordSettings": "pipemap.recorder.session",
+    "RunObserver": "pipemap.recorder.session",
     "record_run": "pipemap.recorder.session",
     "LogWriter": "pipemap.recorder.writer",
 }
@@ -51,6 +58,7 @@ __all__ = [
     "Progress",
     "RecordResult",
     "RecordSettings",
+    "RunObserver",
     "Topic",
     "read_log",
     "record_run",

@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,7 +35,7 @@ from pipemap.errors import InputError
 from pipemap.localizer import DEFAULT_THRESHOLD, ImageSet, Localizer, LocalizerConfig, ProbeRequest
 from pipemap.recorder import messages
 from pipemap.recorder.background import BackgroundWriter
-from pipemap.recorder.convert import ReadyMessage, SweepDone
+from pipemap.recorder.convert import LogRecord, ReadyMessage, SweepDone
 from pipemap.recorder.topics import FORMAT_VERSION, Topic
 from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
 from pipemap.sim.episode import Condition, Episode, SimConfig, Sweep, Visit
@@ -52,7 +52,7 @@ from pipemap.sim.stream import (
 )
 from pipemap.sim.world import CameraSpec, World
 
-__all__ = ["Progress", "RecordResult", "RecordSettings", "record_run"]
+__all__ = ["Progress", "RecordResult", "RecordSettings", "RunObserver", "record_run"]
 
 _NS_PER_S = 1_000_000_000
 #: Placement conditions: the camera motor's step, a probe move, the cruising speed.
@@ -138,6 +138,12 @@ class Progress:
     visits: int
 
 
+#: Watches a run as it is recorded: called with the records sent to the log since the
+#: last call, in the log's order, at the end of every sweep (visit or probe) and once
+#: after the run. A batch holds whole sweeps; the records must not be changed.
+RunObserver = Callable[[Sequence[LogRecord]], None]
+
+
 @dataclass(frozen=True)
 class RecordResult:
     """How a recording ended and what it holds.
@@ -180,11 +186,14 @@ class _OnlineSink:
         localizer: Localizer,
         camera: CameraSpec,
         progress: Callable[[Progress], None] | None,
+        observer: RunObserver | None = None,
     ) -> None:
         self.writer = writer
         self.localizer = localizer
         self.camera = camera
         self.progress = progress
+        self.observer = observer
+        self.observed: list[LogRecord] = []
         self.probes: Any = _NoProbes()  # set per visit by the placement runner
         self.sweeps = 0
         self.visits = 0
@@ -196,10 +205,10 @@ class _OnlineSink:
         if isinstance(record, NodeArrival):
             self.visits += 1
         if not isinstance(record, SweepEnd):
-            self.writer.put(record)
+            self.put(record)
             return
         sweep = record.sweep
-        self.writer.put(
+        self.put(
             SweepDone(
                 record.t_ns,
                 record.sweep_id,
@@ -216,10 +225,23 @@ class _OnlineSink:
             message = messages.decision_message(
                 self.now_ns, record.visit_id, decision, self.localizer.config.threshold
             )
-            self.writer.put(ReadyMessage.of(self.now_ns, Topic.DECISION, message))
+            self.put(ReadyMessage.of(self.now_ns, Topic.DECISION, message))
         self.writer.send()
         if self.progress is not None:
             self.progress(Progress(self.now_ns, self.sweeps, self.visits))
+        self.show()
+
+    def put(self, record: LogRecord) -> None:
+        """Queue ``record`` for the log, and for the observer if there is one."""
+        self.writer.put(record)
+        if self.observer is not None:
+            self.observed.append(record)
+
+    def show(self) -> None:
+        """Hand the records logged since the last call to the observer."""
+        if self.observer is not None and self.observed:
+            batch, self.observed = self.observed, []
+            self.observer(batch)
 
     def _seen(self, sweep: Sweep) -> ImageSet:
         """The image set as a replay will see it (the log's PNG images are lossless)."""
@@ -304,12 +326,14 @@ def record_run(
     version: str,
     progress: Callable[[Progress], None] | None = None,
     overwrite: bool = False,
+    observer: RunObserver | None = None,
 ) -> RecordResult:
     """Run ``settings`` on ``network`` and write its log to ``path``.
 
     The log is finished whatever ends the run; on an exception (Ctrl-C included)
     its result metadata says so and the exception propagates. Without
-    ``overwrite`` an existing file is never touched.
+    ``overwrite`` an existing file is never touched. ``observer``, if given, sees
+    every record as the log gets it (a live view); the log is the same without it.
     """
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
@@ -317,8 +341,8 @@ def record_run(
     localizer = Localizer(LocalizerConfig(threshold=settings.threshold))
     mode = "wb" if overwrite else "xb"
     with BackgroundWriter(path, mode, settings.metadata(network, version)) as writer:
-        writer.put(ReadyMessage.of(0, Topic.NETWORK, messages.network_message(network)))
-        sink = _OnlineSink(writer, localizer, camera, progress)
+        sink = _OnlineSink(writer, localizer, camera, progress, observer)
+        sink.put(ReadyMessage.of(0, Topic.NETWORK, messages.network_message(network)))
         with World(network, seed=settings.seed) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
@@ -340,6 +364,7 @@ def record_run(
                 status = placed.run()
                 distance, duration = placed.distance_m, placed.clock_ns
                 ok = status == "complete"
+        sink.show()  # what came after the last sweep
         count = writer.finish(
             {
                 "status": status,

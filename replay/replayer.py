@@ -40,6 +40,7 @@ __all__ = [
     "ReplayResult",
     "Sweeps",
     "VisitDecision",
+    "answer_probes",
     "replay",
     "sweeps_of",
     "visit_label",
@@ -246,6 +247,16 @@ class _LoggedProbes:
         return None
 
 
+def answer_probes(
+    localizer: Localizer, images: ImageSet, probes: list[LoggedSweep]
+) -> tuple[Decision, int]:
+    """``localizer``'s decision for a visit's ``images``, its probe requests answered
+    from the visit's logged ``probes``; and how many requests the log could not answer."""
+    answers = _LoggedProbes(probes)
+    decision = localizer.localize(images, answers)
+    return decision, answers.not_in_log
+
+
 def replay(
     source: MessageSource,
     config: LocalizerConfig | None = None,
@@ -270,14 +281,11 @@ def replay(
         if lossy and i > 0 and sweep.visit_id != visits[i - 1].visit_id + 1:
             localizer.map.lose_track()
             breaks.append(i)
-        answers = _LoggedProbes(probes.get(sweep.visit_id, []))
         start = time.perf_counter()
-        decision = localizer.localize(sweep.images, answers)
+        decision, missing = answer_probes(localizer, sweep.images, probes.get(sweep.visit_id, []))
         latency = time.perf_counter() - start
         decided.append(
-            VisitDecision(
-                sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, answers.not_in_log
-            )
+            VisitDecision(sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, missing)
         )
         if progress is not None:
             progress(i + 1, len(visits))

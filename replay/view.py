@@ -39,9 +39,11 @@ if TYPE_CHECKING:
 
 __all__ = [
     "APPLICATION_ID",
+    "MapLog",
     "Replayed",
     "describe_decision",
     "log_view",
+    "recording",
     "save_view",
     "spawn_view",
 ]
@@ -52,18 +54,23 @@ _NODE = (150, 150, 150)
 _NODE_NOW = (255, 140, 0)
 
 
-def _recording_id(source: MessageSource) -> str:
+def _recording_id(run_metadata: dict[str, str]) -> str:
     """The same for every view of one log: a name-based UUID of the run's metadata."""
-    run = json.dumps(source.run_metadata(), sort_keys=True)
+    run = json.dumps(run_metadata, sort_keys=True)
     return str(uuid.uuid5(_NAMESPACE, run))
 
 
 def _recording(source: MessageSource) -> rr.RecordingStream:
+    return recording(source.run_metadata())
+
+
+def recording(run_metadata: dict[str, str]) -> rr.RecordingStream:
+    """A recording stream for the run of ``run_metadata``, on ``sim_time`` alone."""
     import rerun as rr
 
     # No properties: they would carry the wall-clock start of the recording.
     rec = rr.RecordingStream(
-        APPLICATION_ID, recording_id=_recording_id(source), send_properties=False
+        APPLICATION_ID, recording_id=_recording_id(run_metadata), send_properties=False
     )
     rec.set_log_time_enabled(False)
     rec.set_log_tick_enabled(False)
@@ -103,20 +110,30 @@ def describe_decision(visit: VisitDecision) -> str:
     return "; ".join(parts)
 
 
-def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
-    """The map as it grows, and each decision as text, at the time of the decision."""
-    import rerun as rr
+class MapLog:
+    """The map as it grows, and each decision as text, at the time of the decision.
 
-    topomap = TopoMap()
-    visits: dict[int, list[str]] = {}
-    for v in result.visits:
+    Fed one decision at a time, so a live view grows the map as the run goes.
+    """
+
+    def __init__(self, rec: rr.RecordingStream) -> None:
+        self.rec = rec
+        self.topomap = TopoMap()
+        self._visits: dict[int, list[str]] = {}
+
+    def add(self, v: VisitDecision) -> None:
+        """Log the map after ``v``'s decision, and the decision, at its time."""
+        import rerun as rr
+
+        rec, topomap = self.rec, self.topomap
         node = v.decision.node
         topomap.visit(node)
-        visits.setdefault(node, []).append(visit_label(v.visit_id))
+        self._visits.setdefault(node, []).append(visit_label(v.visit_id))
         set_time(rec, v.time_ns)
-        ids = [str(n) for n in range(topomap.node_count)]
-        labels = [f"{n}: {', '.join(visits.get(n, []))}" for n in range(topomap.node_count)]
-        colors = [_NODE_NOW if n == node else _NODE for n in range(topomap.node_count)]
+        count = topomap.node_count
+        ids = [str(n) for n in range(count)]
+        labels = [f"{n}: {', '.join(self._visits.get(n, []))}" for n in range(count)]
+        colors = [_NODE_NOW if n == node else _NODE for n in range(count)]
         edges = [(str(e.u), str(e.v)) for e in topomap.edges()]
         rec.log(
             "map",
@@ -125,6 +142,12 @@ def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
         )
         level = "INFO" if v.probes_not_in_log == 0 else "WARN"
         rec.log("log/decisions", rr.TextLog(describe_decision(v), level=level))
+
+
+def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
+    grown = MapLog(rec)
+    for v in result.visits:
+        grown.add(v)
 
 
 #: A replay's result, or a function that waits for one being made elsewhere.

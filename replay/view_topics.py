@@ -38,7 +38,15 @@ from pipemap.replay.wire import Columns, FieldSpec, decode_columns, spec_of
 if TYPE_CHECKING:
     import rerun as rr
 
-__all__ = ["TIMELINE", "RobotGeometry", "log_robot", "log_truth", "set_time", "time_column"]
+__all__ = [
+    "TIMELINE",
+    "RobotGeometry",
+    "Trail",
+    "log_robot",
+    "log_truth",
+    "set_time",
+    "time_column",
+]
 
 #: The one timeline of a view: log time, which is simulated time.
 TIMELINE = "sim_time"
@@ -148,8 +156,11 @@ def _series(
     rec.log(entity, rr.SeriesLines(names=list(names)), static=True)
 
 
-def log_truth(rec: rr.RecordingStream, truth: dict[str, list[LogMessage]]) -> None:
-    """The network (static) and the robot's true pose, with its trajectory so far."""
+def log_truth(
+    rec: rr.RecordingStream, truth: dict[str, list[LogMessage]], trail: Trail | None = None
+) -> None:
+    """The network (static) and the robot's true pose, with its trajectory so far
+    (carried on from ``trail``, if given)."""
     import rerun as rr
 
     for _, scene in _all_decoded(SceneUpdate, truth.get(Topic.NETWORK, []))[:1]:
@@ -184,19 +195,54 @@ def log_truth(rec: rr.RecordingStream, truth: dict[str, list[LogMessage]]) -> No
         indexes=[time_column(times)],
         columns=rr.Transform3D.columns(translation=xyz, quaternion=xyzw),
     )
-    # The trajectory so far, growing by a point every few centimetres of travel.
-    travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xyz, axis=0), axis=1))])
-    steps = np.floor(travelled / _TRAJECTORY_STEP_M)
-    kept = np.nonzero(np.diff(steps, prepend=-1.0) > 0)[0]
-    if len(kept) > 1:
-        trail = [xyz[kept[: i + 1]] for i in range(1, len(kept))]
+    (trail if trail is not None else Trail()).log(rec, times, xyz)
+
+
+class Trail:
+    """The robot's trajectory so far, a point every few centimetres of travel.
+
+    It carries on across calls, so a run logged in pieces (the live view) draws the
+    same path as the whole run logged at once.
+    """
+
+    def __init__(self) -> None:
+        self.kept: list[np.ndarray] = []
+        self._travelled_m = 0.0
+        self._last: np.ndarray | None = None
+
+    def log(self, rec: rr.RecordingStream, times: np.ndarray, xyz: np.ndarray) -> None:
+        """Extend the trail by the poses ``xyz`` at ``times`` and log it as it grows."""
+        import rerun as rr
+
+        if len(times) == 0:
+            return
+        before = self._travelled_m
+        path = xyz if self._last is None else np.concatenate([self._last[None], xyz])
+        steps_m = np.linalg.norm(np.diff(path, axis=0), axis=1)
+        travelled = before + np.cumsum(steps_m)
+        if self._last is None:
+            travelled = np.concatenate([[0.0], travelled])
+        previous = -1.0 if self._last is None else np.floor(before / _TRAJECTORY_STEP_M)
+        steps = np.floor(travelled / _TRAJECTORY_STEP_M)
+        kept = np.nonzero(np.diff(steps, prepend=previous) > 0)[0]
+        self._travelled_m, self._last = float(travelled[-1]), xyz[-1]
+        strips, at = [], []
+        for i in kept:
+            self.kept.append(xyz[i])
+            if len(self.kept) > 1:
+                strips.append(np.array(self.kept))
+                at.append(times[i])
+        if not strips:
+            return
+        first = len(self.kept) - len(strips) == 1  # style with the first strip
         rec.send_columns(
             "world/trajectory",
-            indexes=[time_column(times[kept[1:]])],
-            columns=rr.LineStrips3D.columns(strips=trail),
+            indexes=[time_column(np.array(at))],
+            columns=rr.LineStrips3D.columns(strips=strips),
         )
-        style = rr.LineStrips3D.from_fields(colors=(60, 160, 255), radii=0.003)
-        rec.log("world/trajectory", style, static=True)
+        if first:
+            style = rr.LineStrips3D.from_fields(colors=(60, 160, 255), radii=0.003)
+            rec.log("world/trajectory", style, static=True)
 
 
 def _log_ranges(

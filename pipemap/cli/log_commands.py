@@ -74,11 +74,13 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         )
     if args.save and not args.view:
         raise InputError("--save: writes the view of the run, so it needs --view")
+    if args.connect is not None and not args.view:
+        raise InputError("--connect: streams the run to a viewer, so it needs --view")
     view_target = None
     if args.view:
         from pipemap.cli.view_command import check_view_target
 
-        view_target = check_view_target(target, args.save, args.force)
+        view_target = check_view_target(target, args.save, args.force, args.connect)
     settings = RecordSettings(
         network=args.network,
         start=args.start,
@@ -89,10 +91,15 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         align_sweeps=args.align_sweeps,
         threshold=args.threshold,
     )
+    live = None
+    if args.view and not args.save:
+        from pipemap.cli.view_command import live_view
+
+        live = live_view(settings.metadata(network, __version__), args.threshold, args.connect)
     progress = _progress_printer(err)
     restore = _interrupt_once()
     try:
-        result = record_run(target, settings, network, __version__, progress, args.force)
+        result = record_run(target, settings, network, __version__, progress, args.force, live)
     except KeyboardInterrupt:
         if progress is not None:
             err.write("\n")
@@ -100,6 +107,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         return 130
     finally:
         restore()
+        shown = live.close() if live is not None else None
     if progress is not None:
         err.write("\n")
     size_mb = target.stat().st_size / 1e6
@@ -110,7 +118,11 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, "
         f"{result.status}\n"
     )
-    if args.view:
+    if shown is not None:
+        from pipemap.cli.view_command import live_summary
+
+        out.write(live_summary(str(target), shown, args.connect) + "\n")
+    elif args.view:
         from pipemap.cli.view_command import view_recorded
 
         view_recorded(target, view_target, args.threshold, out, err)

@@ -301,12 +301,22 @@ def build_parser() -> argparse.ArgumentParser:
     p_record.add_argument("-o", "--output", required=True, metavar="RUN.mcap", help="log file")
     p_record.add_argument("--force", action="store_true", help="overwrite an existing log")
     p_record.add_argument(
-        "--view", action="store_true", help="show the run in the rerun viewer right after it"
+        "--view",
+        action="store_true",
+        help="stream the run live to a rerun viewer (spawned, or the one of --connect)",
+    )
+    p_record.add_argument(
+        "--connect",
+        metavar="URL",
+        default=None,
+        help="with --view: stream to the running rerun viewer or server at this gRPC URL "
+        "(e.g. rerun+http://127.0.0.1:9876/proxy) instead of spawning one",
     )
     p_record.add_argument(
         "--save",
         action="store_true",
-        help="with --view: write the view as RUN.rrd beside the log instead of opening it",
+        help="with --view: write the view as RUN.rrd beside the log after the run, "
+        "instead of streaming it",
     )
 
     for name, helptext, description in (

@@ -21,11 +21,13 @@ import argparse
 import dataclasses
 import os
 import pickle
+import socket
 import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, TextIO
+from urllib.parse import urlsplit
 
 from pipemap.cli.outputs import output_file
 from pipemap.cli.replay_commands import localizer_config, open_source, progress_printer
@@ -34,9 +36,17 @@ from pipemap.errors import InputError, ViewerError
 if TYPE_CHECKING:
     from pipemap.localizer import LocalizerConfig
     from pipemap.replay import MessageSource, PackedLog, ReplayResult
+    from pipemap.replay.live import LiveSummary, LiveView
     from pipemap.replay.view import Replayed
 
-__all__ = ["check_view_target", "run_view", "view_recorded"]
+__all__ = [
+    "check_connect",
+    "check_view_target",
+    "live_summary",
+    "live_view",
+    "run_view",
+    "view_recorded",
+]
 
 #: The file suffix rerun gives its recordings; another one is most likely a slip.
 RRD_SUFFIX = ".rrd"
@@ -62,13 +72,67 @@ def _check_display() -> None:
         )
 
 
-def check_view_target(log: Path, save: bool, force: bool) -> Path | None:
-    """For ``pipemap record --view [--save]``, before the run: the ``.rrd`` beside the
-    log when saving (refused if it exists without ``force``), else the display."""
+def check_view_target(log: Path, save: bool, force: bool, connect: str | None) -> Path | None:
+    """For ``pipemap record --view [--save | --connect URL]``, before the run: the
+    ``.rrd`` beside the log when saving (refused if it exists without ``force``);
+    else the viewer at ``connect``, or the display for a viewer to spawn."""
+    if connect is not None:
+        if save:
+            raise InputError("--connect: streams the run live, --save writes it after; choose one")
+        check_connect(connect)
+        return None
     if not save:
         _check_display()
         return None
     return output_file(str(log.with_suffix(RRD_SUFFIX)), "--save", force)
+
+
+_SCHEMES = {"rerun": 443, "rerun+http": 80, "rerun+https": 443}
+#: How long to wait for a viewer's port to answer before the run.
+_CONNECT_TIMEOUT_S = 3.0
+
+
+def check_connect(url: str) -> None:
+    """``--connect URL``: a rerun gRPC proxy URL (``rerun+http://HOST:PORT/proxy``) whose
+    port takes a connection now, so that a wrong URL is told before the run, not lost
+    in the viewer's silence."""
+    parts = urlsplit(url)
+    if parts.scheme not in _SCHEMES or parts.path != "/proxy" or not parts.hostname:
+        raise InputError(
+            f"--connect {url}: not a rerun gRPC proxy URL (rerun+http://HOST:PORT/proxy)"
+        )
+    try:
+        port = parts.port or _SCHEMES[parts.scheme]
+    except ValueError:
+        raise InputError(f"--connect {url}: the port is not a number from 0 to 65535") from None
+    try:
+        socket.create_connection((parts.hostname, port), timeout=_CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise ViewerError(
+            f"--connect {url}: no rerun viewer or server answers at "
+            f"{parts.hostname}:{port} ({exc.strerror or exc})"
+        ) from None
+
+
+def live_view(run_metadata: dict[str, str], threshold: float, connect: str | None) -> LiveView:
+    """For ``pipemap record --view``: the live view of the run about to start, in a
+    spawned viewer or sent to ``connect``."""
+    from pipemap.localizer import LocalizerConfig
+    from pipemap.replay.live import LiveView
+
+    config = LocalizerConfig(threshold=threshold)
+    if connect is None:
+        return LiveView.spawn(run_metadata, config)
+    return LiveView.connect(connect, run_metadata, config)
+
+
+def live_summary(name: str, summary: LiveSummary, connect: str | None) -> str:
+    """The line ``pipemap record --view`` prints after the run."""
+    where = "the rerun viewer" if connect is None else connect
+    return (
+        f"streamed {name}: {summary.sweeps} sweeps, {summary.images} images, "
+        f"{summary.visits} visits, {summary.junctions} junctions, to {where}"
+    )
 
 
 def _summary(name: str, result: ReplayResult) -> str:

@@ -9,6 +9,7 @@ The recording is saved once per module from the shared 32 px run and checked wit
 from __future__ import annotations
 
 import math
+import socket
 import subprocess
 import sys
 from collections import defaultdict
@@ -215,6 +216,13 @@ def no_display(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch.delenv(variable, raising=False)
 
 
+def free_port() -> int:
+    """A loopback port nothing listens on (as the system found it a moment ago)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
 def run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     try:
         status = main(argv)
@@ -292,6 +300,11 @@ def test_record_view_save_writes_the_view_beside_the_log(
         (["--save"], "--save: writes the view of the run, so it needs --view"),
         (["--view"], "no display for the rerun viewer"),
         (["--view", "--save"], "exists; refusing to overwrite without --force"),
+        (["--connect", "{url}"], "--connect: streams the run to a viewer, so it needs --view"),
+        (["--view", "--connect", "http://127.0.0.1:1/x"], "not a rerun gRPC proxy URL"),
+        (["--view", "--connect", "rerun+http://127.0.0.1:99999/proxy"], "the port is not"),
+        (["--view", "--connect", "{closed}"], "no rerun viewer or server answers at"),
+        (["--view", "--save", "--connect", "{url}"], "choose one"),
     ],
 )
 def test_record_view_is_checked_before_the_run(
@@ -303,6 +316,8 @@ def test_record_view_is_checked_before_the_run(
 ) -> None:
     no_display(monkeypatch)
     (tmp_path / "run.rrd").write_bytes(b"keep me")
+    closed = f"rerun+http://127.0.0.1:{free_port()}/proxy"  # nothing listens there
+    extra = [a.format(url="rerun+http://127.0.0.1:9876/proxy", closed=closed) for a in extra]
     log = tmp_path / "run.mcap"
     status, stdout, stderr = run(["record", "--network", "paper", "-o", str(log), *extra], capfd)
     assert status == 2 and stdout == ""

@@ -1,0 +1,153 @@
+"""A run in rerun while it is recorded: the live view of ``pipemap record --view``.
+
+:class:`LiveView` is a recorder observer (:data:`recorder.session.RunObserver`): the
+recorder hands it the records of each sweep as they go to the log. It turns them
+into the log's messages with the recorder's own converter (so it shows what the log
+holds, nothing the log does not), logs them as :mod:`replay.view` does for a whole
+log, and replays each visit as soon as the run has decided it, so the map grows
+at each sweep. The records are only read: the log is the same with or without it.
+
+The stream goes to a viewer it spawns or to a running viewer or server
+(``connect``). The recording has the id a later ``pipemap view`` of the same log
+gets, and the same ``sim_time`` timeline.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from pipemap.localizer import Localizer, LocalizerConfig
+from pipemap.recorder import LogMessage, Topic
+from pipemap.recorder.convert import LogRecord, RecordConverter
+from pipemap.recorder.topics import ROBOT_PREFIX
+from pipemap.replay.replayer import LoggedSweep, VisitDecision, answer_probes, sweeps_of
+from pipemap.replay.source import ordered
+from pipemap.replay.view import MapLog, recording
+from pipemap.replay.view_blueprint import view_blueprint
+from pipemap.replay.view_topics import RobotGeometry, Trail, log_robot, log_truth
+
+if TYPE_CHECKING:
+    import rerun as rr
+
+__all__ = ["LiveSummary", "LiveView"]
+
+
+class _Collector:
+    """Stands in for the log writer: keeps the converter's messages in memory."""
+
+    def __init__(self) -> None:
+        self.messages: list[LogMessage] = []
+        self._sequence: dict[str, int] = defaultdict(int)
+
+    def write(self, topic: str, log_time_ns: int, message: Any) -> None:
+        self.write_serialized(topic, log_time_ns, message.SerializeToString())
+
+    def write_serialized(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        self.messages.append(LogMessage(topic, log_time_ns, self._sequence[topic], data))
+        self._sequence[topic] += 1
+
+    def flush(self) -> None:
+        """Nothing to flush: the messages are taken after every batch."""
+
+
+@dataclass(frozen=True)
+class LiveSummary:
+    """What a live view showed."""
+
+    sweeps: int
+    images: int
+    visits: int
+    junctions: int
+
+
+class LiveView:
+    """Streams a run to rerun as it is recorded; call it with each batch of records.
+
+    Use as a context manager, or call :meth:`close`: it replays what is left,
+    sends everything and lets the viewer go.
+    """
+
+    def __init__(
+        self, rec: rr.RecordingStream, run_metadata: dict[str, str], config: LocalizerConfig
+    ) -> None:
+        self.rec = rec
+        self._geometry = RobotGeometry.from_run(run_metadata)
+        self._collector = _Collector()
+        self._convert = RecordConverter(self._collector)
+        self._trail = Trail()
+        self._map = MapLog(rec)
+        self._localizer = Localizer(config)
+        self._waiting: list[LoggedSweep] = []  # visits' sweeps the run has not decided yet
+        self._probes: dict[int, list[LoggedSweep]] = defaultdict(list)
+        self._sweeps = self._images = self._visits = 0
+        self._closed = False
+
+    @classmethod
+    def spawn(cls, run_metadata: dict[str, str], config: LocalizerConfig) -> LiveView:
+        """A live view in a rerun viewer, started if none is running."""
+        rec = recording(run_metadata)
+        rec.spawn(default_blueprint=view_blueprint())
+        return cls(rec, run_metadata, config)
+
+    @classmethod
+    def connect(cls, url: str, run_metadata: dict[str, str], config: LocalizerConfig) -> LiveView:
+        """A live view sent to the rerun viewer or server at the gRPC ``url``."""
+        rec = recording(run_metadata)
+        rec.connect_grpc(url, default_blueprint=view_blueprint())
+        return cls(rec, run_metadata, config)
+
+    def __call__(self, records: Sequence[LogRecord]) -> None:
+        """Show ``records`` (the records of one or more whole sweeps, in log order)."""
+        for record in records:
+            self._convert(record)
+        batch = ordered(self._collector.messages)
+        self._collector.messages = []
+        by_topic: dict[str, list[LogMessage]] = defaultdict(list)
+        robot: list[LogMessage] = []
+        for m in batch:
+            by_topic[m.topic].append(m)
+            if m.topic.startswith(ROBOT_PREFIX):
+                robot.append(m)
+        log_robot(self.rec, by_topic, self._geometry)
+        log_truth(self.rec, by_topic, self._trail)
+        sweeps, _ = sweeps_of(robot, "live run")
+        for sweep in sweeps:
+            self._sweeps += 1
+            self._images += sweep.images.count
+            if sweep.probe is None:
+                self._waiting.append(sweep)
+            else:
+                self._probes[sweep.visit_id].append(sweep)
+        # The run has decided (so every probe of the visit is in): replay the visit.
+        if Topic.DECISION in by_topic:
+            self._decide()
+
+    def _decide(self) -> None:
+        for sweep in self._waiting:
+            probes = self._probes.pop(sweep.visit_id, [])
+            decision, missing = answer_probes(self._localizer, sweep.images, probes)
+            self._map.add(
+                VisitDecision(sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, 0.0, missing)
+            )
+            self._visits += 1
+        self._waiting = []
+
+    def close(self) -> LiveSummary:
+        """Replay the visits not yet decided, send everything, let the viewer go."""
+        if not self._closed:
+            self._closed = True
+            self._decide()
+            try:
+                self.rec.flush(timeout_sec=10.0)
+            finally:
+                self.rec.disconnect()
+        return LiveSummary(self._sweeps, self._images, self._visits, self._localizer.map.node_count)
+
+    def __enter__(self) -> LiveView:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
