@@ -24,8 +24,10 @@ from typing import Any
 
 import pytest
 
+from pipemap.errors import ViewerError
 from pipemap.recorder import Topic, read_log
 from pipemap.replay import FileSource, replay
+from pipemap.replay.live import LiveView, LiveViewProcess
 from pipemap.replay.view import describe_decision
 from tests.logs import SMALL_RUN
 from tests.replay.test_view import column, free_port, read_chunks, rows
@@ -195,3 +197,16 @@ def test_the_log_is_the_same_bytes_with_the_live_view(
 ) -> None:
     _, log, _, _ = streamed
     assert log.read_bytes() == recorded_run.read_bytes()
+
+
+def test_a_live_view_that_stops_is_reported_and_does_not_hang(
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    def no_viewer() -> LiveView:
+        raise RuntimeError("no viewer here")
+
+    live = LiveViewProcess(no_viewer)
+    live([])  # to a child that is gone, or going: dropped, not raised
+    with pytest.raises(ViewerError, match="the live view stopped before the end of the run"):
+        live.close()
+    assert "RuntimeError: no viewer here" in capfd.readouterr().err
