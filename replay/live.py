@@ -14,11 +14,18 @@ gets, and the same ``sim_time`` timeline.
 
 from __future__ import annotations
 
+import os
+import queue
+import signal
+import sys
+import threading
+import traceback
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from pipemap.errors import ViewerError
 from pipemap.localizer import Localizer, LocalizerConfig
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.convert import LogRecord, RecordConverter
@@ -30,9 +37,11 @@ from pipemap.replay.view_blueprint import view_blueprint
 from pipemap.replay.view_topics import RobotGeometry, Trail, log_robot, log_truth
 
 if TYPE_CHECKING:
+    from multiprocessing.connection import Connection
+
     import rerun as rr
 
-__all__ = ["LiveSummary", "LiveView"]
+__all__ = ["LiveSummary", "LiveView", "LiveViewProcess"]
 
 
 class _Collector:
@@ -151,3 +160,84 @@ class LiveView:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class LiveViewProcess:
+    """A :class:`LiveView` in a forked child process, so that the run does not wait
+    for it: the view's replay and rerun's encoding take a core of their own.
+
+    Call it with each batch of records, as a :class:`LiveView`; the batches go down a
+    pipe, which a thread of the child empties as fast as they come (the run never
+    waits on a full pipe). :meth:`close` waits until the child has shown everything.
+    The child ignores Ctrl-C, which the terminal sends to both: ending the view is
+    the parent's call. rerun is imported in the child only.
+    """
+
+    def __init__(self, make: Callable[[], LiveView]) -> None:
+        import multiprocessing
+
+        batches, self._batches = multiprocessing.Pipe(duplex=False)
+        self._summary, summary = multiprocessing.Pipe(duplex=False)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        self._pid = os.fork()
+        if self._pid == 0:
+            self._batches.close()
+            self._summary.close()
+            _show_batches(make, batches, summary)  # never returns
+        batches.close()
+        summary.close()
+        self._lost = False
+        self._result: LiveSummary | None = None
+
+    def __call__(self, records: Sequence[LogRecord]) -> None:
+        """Hand ``records`` to the child (dropped if it has gone; :meth:`close` says so)."""
+        if self._lost:
+            return
+        try:
+            self._batches.send(list(records))
+        except OSError:  # a broken pipe: the child ended, and said why on stderr
+            self._lost = True
+
+    def close(self) -> LiveSummary:
+        """Wait for the child to show everything and end; what it showed."""
+        if self._result is None:
+            self._batches.close()
+            try:
+                self._result = self._summary.recv()
+            except EOFError:
+                self._result = None
+            finally:
+                self._summary.close()
+                os.waitpid(self._pid, 0)
+            if self._result is None:
+                raise ViewerError("the live view stopped before the end of the run")
+        return self._result
+
+
+def _show_batches(make: Callable[[], LiveView], batches: Connection, summary: Connection) -> None:
+    """The child of :class:`LiveViewProcess`: show every batch, send the summary, exit."""
+    status = 1
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        received: queue.SimpleQueue[list[LogRecord] | None] = queue.SimpleQueue()
+
+        def drain() -> None:
+            try:
+                while True:
+                    received.put(batches.recv())
+            except (EOFError, OSError):
+                received.put(None)
+
+        threading.Thread(target=drain, daemon=True).start()
+        view = make()
+        while (batch := received.get()) is not None:
+            view(batch)
+        summary.send(view.close())
+        status = 0
+    except BaseException:  # noqa: BLE001 - reported here; the parent says the view stopped
+        traceback.print_exc()
+    finally:
+        sys.stderr.flush()
+        os._exit(status)

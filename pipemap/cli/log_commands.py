@@ -19,7 +19,7 @@ from types import FrameType
 from typing import Any, TextIO
 
 from pipemap import __version__
-from pipemap.errors import InputError
+from pipemap.errors import InputError, ViewerError
 
 __all__ = ["run_info", "run_record"]
 
@@ -56,6 +56,18 @@ def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
         err.flush()
 
     return show
+
+
+def _close_live(live: Any, err: TextIO) -> Any:
+    """End the live view, if any: what it showed, or ``None`` if it had stopped (said
+    in a note: the log is written all the same)."""
+    if live is None:
+        return None
+    try:
+        return live.close()
+    except ViewerError as exc:
+        err.write(f"pipemap: note: {exc}\n")
+        return None
 
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -107,7 +119,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         return 130
     finally:
         restore()
-        shown = live.close() if live is not None else None
+        shown = _close_live(live, err)
     if progress is not None:
         err.write("\n")
     size_mb = target.stat().st_size / 1e6
@@ -118,10 +130,11 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, "
         f"{result.status}\n"
     )
-    if shown is not None:
-        from pipemap.cli.view_command import live_summary
+    if live is not None:
+        if shown is not None:
+            from pipemap.cli.view_command import live_summary
 
-        out.write(live_summary(str(target), shown, args.connect) + "\n")
+            out.write(live_summary(str(target), shown, args.connect) + "\n")
     elif args.view:
         from pipemap.cli.view_command import view_recorded
 

@@ -36,7 +36,7 @@ from pipemap.errors import InputError, ViewerError
 if TYPE_CHECKING:
     from pipemap.localizer import LocalizerConfig
     from pipemap.replay import MessageSource, PackedLog, ReplayResult
-    from pipemap.replay.live import LiveSummary, LiveView
+    from pipemap.replay.live import LiveSummary, LiveView, LiveViewProcess
     from pipemap.replay.view import Replayed
 
 __all__ = [
@@ -114,16 +114,23 @@ def check_connect(url: str) -> None:
         ) from None
 
 
-def live_view(run_metadata: dict[str, str], threshold: float, connect: str | None) -> LiveView:
+def live_view(
+    run_metadata: dict[str, str], threshold: float, connect: str | None
+) -> LiveView | LiveViewProcess:
     """For ``pipemap record --view``: the live view of the run about to start, in a
-    spawned viewer or sent to ``connect``."""
+    spawned viewer or sent to ``connect``; in a child process where the system can
+    fork (started now, before the simulator), else in this one."""
     from pipemap.localizer import LocalizerConfig
-    from pipemap.replay.live import LiveView
+    from pipemap.replay.live import LiveView, LiveViewProcess
 
     config = LocalizerConfig(threshold=threshold)
-    if connect is None:
-        return LiveView.spawn(run_metadata, config)
-    return LiveView.connect(connect, run_metadata, config)
+
+    def make() -> LiveView:
+        if connect is None:
+            return LiveView.spawn(run_metadata, config)
+        return LiveView.connect(connect, run_metadata, config)
+
+    return LiveViewProcess(make) if hasattr(os, "fork") else make()
 
 
 def live_summary(name: str, summary: LiveSummary, connect: str | None) -> str:

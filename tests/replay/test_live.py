@@ -24,11 +24,14 @@ from typing import Any
 
 import pytest
 
-from pipemap.recorder import Topic, read_log
+from pipemap.cli import view_command
+from pipemap.errors import ViewerError
+from pipemap.recorder import METADATA_RESULT, Topic, read_log
 from pipemap.replay import FileSource, replay
+from pipemap.replay.live import LiveView, LiveViewProcess
 from pipemap.replay.view import describe_decision
 from tests.logs import SMALL_RUN
-from tests.replay.test_view import column, free_port, read_chunks, rows
+from tests.replay.test_view import column, free_port, read_chunks, rows, run
 
 #: What has to arrive while the run goes: an image, the map, a scalar series.
 LIVE = ("/camera/image", "/map", "/sensors/tof/range_m")
@@ -195,3 +198,33 @@ def test_the_log_is_the_same_bytes_with_the_live_view(
 ) -> None:
     _, log, _, _ = streamed
     assert log.read_bytes() == recorded_run.read_bytes()
+
+
+def test_a_live_view_that_stops_is_reported_and_does_not_hang(
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    def no_viewer() -> LiveView:
+        raise RuntimeError("no viewer here")
+
+    live = LiveViewProcess(no_viewer)
+    live([])  # to a child that is gone, or going: dropped, not raised
+    with pytest.raises(ViewerError, match="the live view stopped before the end of the run"):
+        live.close()
+    assert "RuntimeError: no viewer here" in capfd.readouterr().err
+
+
+def test_record_goes_on_and_says_so_when_the_live_view_stops(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def no_viewer() -> LiveView:
+        raise RuntimeError("no viewer here")
+
+    monkeypatch.setenv("DISPLAY", ":0")  # a display to spawn on; the view fails instead
+    monkeypatch.setattr(view_command, "live_view", lambda *_: LiveViewProcess(no_viewer))
+    log = tmp_path / "run.mcap"
+    argv = ["record", *SMALL_RUN, "--condition", "perfect", "-o", str(log), "--view"]
+    status, stdout, stderr = run(argv, capfd)
+    assert status == 0, stderr
+    assert stdout.startswith(f"recorded {log} ") and "streamed" not in stdout
+    assert "pipemap: note: the live view stopped before the end of the run" in stderr
+    assert read_log(log).metadata[METADATA_RESULT]["status"] == "complete"
