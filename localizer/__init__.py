@@ -47,6 +47,7 @@ from pipemap.localizer.twoview import (
     TwoViewConfig,
     TwoViewFit,
     fit_two_view,
+    overlapping_images,
     sweep_features,
 )
 
@@ -80,6 +81,7 @@ __all__ = [
     "decision_record",
     "dumps_document",
     "fit_two_view",
+    "overlapping_images",
     "map_document",
     "ncc_same",
     "pair_peak",
