@@ -30,6 +30,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import copy  # noqa: E402
 import itertools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
@@ -55,6 +56,8 @@ from pipemap.localizer import (  # noqa: E402
     FastMatcher,
     ImageSet,
     Localizer,
+    TopoMap,
+    fit_two_view,
     pairwise_matches,
     prepare,
     reference_match,
@@ -62,25 +65,30 @@ from pipemap.localizer import (  # noqa: E402
 )
 
 DEFAULT_SETS = ROOT.parent / "shared" / "paper_imagesets"
+from pipemap.localizer.twoview import StoredFeatures, stored_features  # noqa: E402
+
 REFERENCE_VALUES = ROOT / "tests" / "localizer" / "data" / "paper_reference.json"
 
 
 def augmented_set(base: list[ImageSet], rng: np.random.Generator) -> ImageSet:
-    """A plausible distractor: images of one or two base sets, rolled, mirrored, relit."""
+    """A plausible distractor that is no junction of ``base``: images of one or two
+    base sets, mirrored left to right (always: ORB's descriptors are not
+    mirror-invariant, so a mirrored view matches its original no better than a
+    different junction would), rolled, sometimes in reverse order, relit."""
     first = base[int(rng.integers(len(base)))].images
     second = base[int(rng.integers(len(base)))].images
     n = first.shape[0]
     take = rng.random(n) < 0.5
-    images = np.where(take[:, None, None], first, second)
+    images = np.where(take[:, None, None], first, second)[:, :, ::-1]
     images = np.roll(images, int(rng.integers(n)), axis=0)
     if rng.random() < 0.5:
-        images = images[::-1, :, ::-1]
+        images = images[::-1]  # the sweep turning the other way
     gain = rng.uniform(0.7, 1.3)
     offset = rng.uniform(-20, 20)
     shift = int(rng.integers(-40, 41))
     images = np.roll(images, shift, axis=2) * gain + offset
     images = images + rng.normal(0.0, 3.0, images.shape)
-    return ImageSet(np.clip(images, 0, 255).astype(np.float32))
+    return ImageSet(np.rint(np.clip(images, 0, 255)).astype(np.float32))
 
 
 def resized(image_set: ImageSet, px: int) -> ImageSet:
@@ -89,47 +97,85 @@ def resized(image_set: ImageSet, px: int) -> ImageSet:
     return ImageSet(np.rint(np.stack(images)), fov_rad=image_set.fov_rad)
 
 
-def decision_benchmark(sets: dict[str, ImageSet], sizes: list[int], px: int) -> dict:  # type: ignore[type-arg]
-    """Decisions at the defaults against databases of ``sizes`` known junctions."""
-    from pipemap.localizer.twoview import stored_features
+def _distractor_localizer(
+    queries: list[ImageSet], size: int, rng: np.random.Generator
+) -> tuple[Localizer, list[StoredFeatures]]:
+    """A localizer that knows ``size`` distractors, seeded as the localizer itself
+    does for a new junction (prepare once, keypoints once) without deciding each;
+    and the distractors' keypoints."""
+    localizer = Localizer()
+    for _ in range(size):
+        distractor = augmented_set(queries, rng)
+        localizer._matcher.add(localizer._matcher.prepare(distractor))
+        localizer._features.append(stored_features(distractor, localizer.config.two_view_config))
+        localizer.map.visit(len(localizer._features) - 1)
+    return localizer, list(localizer._features)
 
+
+def _forget_after(localizer: Localizer, count: int, saved: TopoMap) -> None:
+    """Undo the decisions since the localizer knew ``count`` junctions (the index
+    only grows by appending, so truncating it is exact)."""
+    matcher = localizer._matcher
+    del matcher._sets[count:]
+    for key in [k for k in matcher._fine_cache if k >= count]:
+        del matcher._fine_cache[key]
+    del localizer._features[count:]
+    localizer.map = copy.deepcopy(saved)
+
+
+def decision_benchmark(
+    sets: dict[str, ImageSet], sizes: list[int], px: int, check: bool = False
+) -> dict:  # type: ignore[type-arg]
+    """Decisions at the defaults against databases of ``sizes`` known junctions.
+
+    Every query is decided against the distractors alone (the database is reset
+    after each), so each decision is a new junction's: the two-view check tries all
+    its candidates, the slowest case. ``known`` counts queries decided known (a
+    distractor taken for a query's junction; must be 0). With ``check``, every query
+    is also fitted against every distractor (no rotation guess, so every image
+    against every image), and the most inliers any pair reaches is reported.
+    """
     queries = [resized(s, px) for s in sets.values()]
     rng = np.random.default_rng(7)
     decision_ms: dict[str, float] = {}
     cpu_ms: dict[str, float] = {}
+    known = 0
+    most_inliers = 0
     memory = 0.0
     for size in sizes:
-        localizer = Localizer()
-        # Seed the index as the localizer itself does for a new junction (prepare
-        # once, keypoints once), without deciding each distractor.
-        for _ in range(size):
-            # Mirrored, so that no distractor shows a query's own views: ORB's
-            # descriptors are not mirror-invariant, as different junctions would not match.
-            images = augmented_set(queries, rng).images[:, :, ::-1]
-            distractor = ImageSet(np.rint(images))
-            localizer._matcher.add(localizer._matcher.prepare(distractor))
-            localizer._features.append(
-                stored_features(distractor, localizer.config.two_view_config)
-            )
-            localizer.map.visit(len(localizer._features) - 1)
+        localizer, distractors = _distractor_localizer(queries, size, rng)
+        saved = copy.deepcopy(localizer.map)
         walls, cpus = [], []
         for query in queries:
             wall, cpu = time.perf_counter(), time.process_time()
-            localizer.localize(query)
+            decision = localizer.localize(query)
             walls.append(time.perf_counter() - wall)
             cpus.append(time.process_time() - cpu)
+            known += decision.known
+            _forget_after(localizer, size, saved)
         decision_ms[str(size)] = round(statistics.median(walls) * 1000, 2)
         cpu_ms[str(size)] = round(statistics.median(cpus) * 1000, 2)
         held = localizer._matcher.kept_bytes() + sum(f.nbytes for f in localizer._features)
         memory = held / localizer.known_count / 1024
-    return {
+        if check:
+            config = localizer.config.two_view_config
+            for query in queries:
+                features = stored_features(query, config).features()
+                for stored in distractors:
+                    fit = fit_two_view(features, stored.features(), config)
+                    most_inliers = max(most_inliers, 0 if fit is None else fit.inliers)
+    result = {
         "resolution_px": px,
         "decision_ms": decision_ms,
         "decision_cpu_ms": cpu_ms,
         "memory_per_junction_kib": round(memory, 1),
         "two_view": True,
         "queries": len(queries),
+        "known": known,
     }
+    if check:
+        result["distractor_max_inliers"] = most_inliers
+    return result
 
 
 def time_call(fn, repeat: int) -> float:  # type: ignore[no-untyped-def]
@@ -178,6 +224,11 @@ def main() -> int:
     parser.add_argument("--sizes", default="1,10,100,1000")
     parser.add_argument("--json", action="store_true", help="decision benchmark only, as JSON")
     parser.add_argument("--px", type=int, default=400, help="image size of --json (400)")
+    parser.add_argument(
+        "--check-distractors",
+        action="store_true",
+        help="with --json: fit every query against every distractor (minutes)",
+    )
     args = parser.parse_args()
     if args.json:
         names = sorted(p.name for p in args.sets.iterdir() if p.is_dir())
@@ -187,7 +238,8 @@ def main() -> int:
             if args.sizes == "1,10,100,1000"
             else [int(x) for x in args.sizes.split(",")]
         )
-        print(json.dumps(decision_benchmark(sets, sizes, args.px), indent=2))
+        result = decision_benchmark(sets, sizes, args.px, args.check_distractors)
+        print(json.dumps(result, indent=2))
         return 0
 
     names = sorted(p.name for p in args.sets.iterdir() if p.is_dir())

@@ -62,6 +62,7 @@ if TYPE_CHECKING:
         TwoViewConfig,
         TwoViewFit,
         fit_two_view,
+        overlapping_images,
         sweep_features,
     )
 
@@ -102,6 +103,7 @@ _EXPORTS = {
     "decision_record": "pipemap.localizer.mapjson",
     "dumps_document": "pipemap.localizer.mapjson",
     "fit_two_view": "pipemap.localizer.twoview",
+    "overlapping_images": "pipemap.localizer.twoview",
     "map_document": "pipemap.localizer.mapjson",
     "ncc_same": "pipemap.localizer.similarity",
     "pair_peak": "pipemap.localizer.similarity",
@@ -159,6 +161,7 @@ __all__ = [
     "decision_record",
     "dumps_document",
     "fit_two_view",
+    "overlapping_images",
     "map_document",
     "ncc_same",
     "pair_peak",

@@ -57,6 +57,7 @@ __all__ = [
     "TwoViewFit",
     "detection_factor",
     "fit_two_view",
+    "overlapping_images",
     "stored_features",
     "sweep_features",
 ]
@@ -76,6 +77,14 @@ class TwoViewConfig:
     #: Lowe's ratio: a match counts if its distance is below this share of the
     #: second-best one.
     ratio: float = 0.8
+    #: With a rotation guess, match each image only with the images of the other
+    #: sweep it can overlap (see :func:`overlapping_images`), this far beyond the
+    #: field of view: half the Hamming distances or fewer to compute.
+    overlap_only: bool = True
+    overlap_margin_rad: float = 0.6
+    #: Lowe's ratio when matching only overlapping images: fewer keypoints compete
+    #: for second best there, so ambiguous matches pass more easily at ``ratio``.
+    overlap_ratio: float = 0.8
     #: Rotation searched within this angle of the peak of the matches' azimuth
     #: differences (parallax at 3 cm off centre reaches about 0.3 rad).
     search_rad: float = 0.3
@@ -111,11 +120,19 @@ class SweepFeatures:
     ``bearings`` is ``(M, 3)``: x ahead, y left, z up, unit length.
     ``descriptors`` is ``(M, 32)`` uint8 (ORB). ``pixel_rad`` is the angle one pixel
     subtends at the image centre.
+
+    ``image`` (the index of the image each keypoint came from), ``image_azimuth_rad``
+    (where each image looks, in the heading frame) and ``fov_rad`` let
+    :func:`fit_two_view` match only the images that can overlap; without them
+    (``None``) every keypoint is matched with every other.
     """
 
     bearings: np.ndarray
     descriptors: np.ndarray
     pixel_rad: float
+    image: np.ndarray | None = None
+    image_azimuth_rad: np.ndarray | None = None
+    fov_rad: float | None = None
 
     def __len__(self) -> int:
         return len(self.bearings)
@@ -199,8 +216,10 @@ class StoredFeatures:
         n, h, w = self.count, self.height, self.width
         focal_px = (w / 2.0) / math.tan(self.fov_rad / 2.0)
         pixel_rad = self.factor / focal_px
+        looks = self.camera_angle_rad - np.arange(n, dtype=np.float64) * 2.0 * math.pi / n
         if len(self.points) == 0:
-            return SweepFeatures(np.zeros((0, 3)), np.zeros((0, 32), np.uint8), pixel_rad)
+            empty = np.zeros((0, 3)), np.zeros((0, 32), np.uint8), pixel_rad
+            return SweepFeatures(*empty, self.image, looks, self.fov_rad)
         # OpenCV puts pixel 0's centre at 0.0; the image centre is at (w - 1) / 2.
         uv = self.points.astype(np.float64)
         if self.factor != 1:
@@ -212,7 +231,7 @@ class StoredFeatures:
         horizontal = np.hypot(focal_px, x)
         rays = np.stack([np.cos(azimuth) * horizontal, np.sin(azimuth) * horizontal, y], axis=1)
         bearings = rays / np.linalg.norm(rays, axis=1, keepdims=True)
-        return SweepFeatures(bearings, self.descriptors, pixel_rad)
+        return SweepFeatures(bearings, self.descriptors, pixel_rad, self.image, looks, self.fov_rad)
 
 
 def detection_factor(width_px: int, config: TwoViewConfig) -> int:
@@ -274,15 +293,62 @@ def sweep_features(image_set: ImageSet, config: TwoViewConfig | None = None) -> 
     return stored_features(image_set, config).features()
 
 
-def _matches(a: SweepFeatures, b: SweepFeatures, ratio: float) -> tuple[np.ndarray, np.ndarray]:
-    """Indices into ``a`` and ``b`` of the keypoints that pass the ratio test."""
-    if len(a) < 2 or len(b) < 2:
+def _ratio_matches(a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+    """Indices into descriptors ``a`` and ``b`` of the pairs that pass the ratio test
+    (each of ``b``'s keypoints with its nearest in ``a``)."""
+    if len(a) < 2 or len(b) < 1:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(b.descriptors, a.descriptors, k=2)
+    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(b, a, k=2)
     good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < ratio * p[1].distance]
     ia = np.array([g.trainIdx for g in good], dtype=np.int64)
     ib = np.array([g.queryIdx for g in good], dtype=np.int64)
     return ia, ib
+
+
+def overlapping_images(
+    a: SweepFeatures, b: SweepFeatures, rotation_rad: float, margin_rad: float
+) -> list[np.ndarray] | None:
+    """For each image of ``b``, the images of ``a`` it can overlap when ``b``'s heading
+    is ``rotation_rad`` from ``a``'s: their look directions, so turned, closer than
+    the wider field of view plus ``margin_rad`` (the parallax and the error of the
+    rotation). ``None`` when either sweep does not say where its images look."""
+    if (
+        a.image is None
+        or b.image is None
+        or a.image_azimuth_rad is None
+        or b.image_azimuth_rad is None
+        or a.fov_rad is None
+        or b.fov_rad is None
+    ):
+        return None
+    reach = max(a.fov_rad, b.fov_rad) + margin_rad
+    # A bearing of b at azimuth phi lies at phi + rotation in a's frame.
+    gap = b.image_azimuth_rad[:, None] + rotation_rad - a.image_azimuth_rad[None, :]
+    gap = np.abs(np.mod(gap + math.pi, 2.0 * math.pi) - math.pi)
+    return [np.flatnonzero(row < reach) for row in gap]
+
+
+def _matches(
+    a: SweepFeatures,
+    b: SweepFeatures,
+    ratio: float,
+    overlap: list[np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices into ``a`` and ``b`` of the keypoints that pass the ratio test: each
+    image of ``b`` against the images of ``a`` that ``overlap`` lists for it (see
+    :func:`overlapping_images`), or every keypoint against every other."""
+    if len(a) < 2 or len(b) < 2:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    if overlap is None or a.image is None or b.image is None:
+        return _ratio_matches(a.descriptors, b.descriptors, ratio)
+    found_a, found_b = [], []
+    for k, images in enumerate(overlap):
+        in_b = np.flatnonzero(b.image == k)
+        in_a = np.flatnonzero(np.isin(a.image, images))
+        ia, ib = _ratio_matches(a.descriptors[in_a], b.descriptors[in_b], ratio)
+        found_a.append(in_a[ia])
+        found_b.append(in_b[ib])
+    return np.concatenate(found_a), np.concatenate(found_b)
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -392,10 +458,15 @@ def fit_two_view(
 
     The rotation is searched around the peak of the matches' azimuth differences
     and around ``guess_rad`` (the NCC's estimate, say), if given: near walls pull
-    the peak by up to the parallax.
+    the peak by up to the parallax. With a guess (and ``config.overlap_only``), each
+    image is matched only with the images of the other sweep that can overlap it.
     """
     config = config if config is not None else TwoViewConfig()
-    ia, ib = _matches(query, known, config.ratio)
+    overlap = None
+    if guess_rad is not None and config.overlap_only:
+        overlap = overlapping_images(query, known, guess_rad, config.overlap_margin_rad)
+    ratio = config.ratio if overlap is None else config.overlap_ratio
+    ia, ib = _matches(query, known, ratio, overlap)
     if len(ia) < config.min_inliers:
         return None
     a, b = query.bearings[ia], known.bearings[ib]

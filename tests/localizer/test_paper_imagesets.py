@@ -22,6 +22,7 @@ from pipemap.localizer import (
     Localizer,
     TwoViewConfig,
     fit_two_view,
+    overlapping_images,
     pairwise_matches,
     reference_match,
     sweep_features,
@@ -164,6 +165,27 @@ def test_two_view_rotation_with_the_tilt_free_beats_the_paper(paper_sets, keypoi
     assert np.mean(tilted) <= 0.01
     assert max(tilted) <= 0.07
     assert sorted(tilted)[-2] <= 0.035  # one pair (1_active, 2) at 0.061
+
+
+def test_two_view_check_on_overlapping_images_keeps_every_decision(
+    fast, paper_sets, keypoints
+) -> None:  # type: ignore[no-untyped-def]
+    # As the localizer runs it: the NCC's rotation as the guess, so each image is
+    # matched only with the images of the other sweep it can overlap. Same-junction
+    # pairs still pass the localizer's 48 inliers; different ones stay far below.
+    config = TwoViewConfig()
+    gated = 0
+    for a, b in itertools.combinations(sorted(paper_sets), 2):
+        guess = fast[(a, b)].rotation_rad
+        overlap = overlapping_images(keypoints[a], keypoints[b], guess, config.overlap_margin_rad)
+        assert overlap is not None
+        gated += sum(len(row) < paper_sets[a].images.count for row in overlap)
+        fit = fit_two_view(keypoints[a], keypoints[b], config, guess)
+        if paper_sets[a].same_junction(paper_sets[b]):
+            assert fit is not None and fit.inliers >= 48, (a, b, fit)
+        else:
+            assert fit is None or fit.inliers < 24, (a, b, fit)
+    assert gated == 55 * paper_sets["1"].images.count  # every image of every pair
 
 
 def _true_nodes(visits: list[PaperSet]) -> list[int]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -10,7 +11,14 @@ import pytest
 
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.similarity import wrap_angle_rad
-from pipemap.localizer.twoview import SweepFeatures, TwoViewConfig, fit_two_view, sweep_features
+from pipemap.localizer.twoview import (
+    SweepFeatures,
+    TwoViewConfig,
+    _matches,
+    fit_two_view,
+    overlapping_images,
+    sweep_features,
+)
 
 PIXEL_RAD = 1.0 / 240.0  # about a 400 px image with an 80 degree field of view
 
@@ -231,3 +239,57 @@ def test_level_sweeps_keep_the_planar_fit() -> None:
     fit = fit_two_view(query, known)
     assert planar is not None
     assert fit == planar
+
+
+def _sweep_layout(count: int, fov_rad: float) -> SweepFeatures:
+    """Features of ``count`` images (one keypoint each) that say where they look."""
+    looks = -np.arange(count) * 2.0 * math.pi / count
+    return SweepFeatures(
+        np.zeros((count, 3)),
+        np.zeros((count, 32), np.uint8),
+        PIXEL_RAD,
+        np.arange(count, dtype=np.uint8),
+        looks,
+        fov_rad,
+    )
+
+
+def test_overlapping_images_are_the_neighbours_the_rotation_brings() -> None:
+    six = _sweep_layout(6, math.radians(80.0))
+    # Lined up: each image reaches its own and its two neighbours (60 degrees off),
+    # not those 120 degrees off.
+    aligned = overlapping_images(six, six, 0.0, 0.3)
+    assert aligned is not None
+    assert [sorted(row.tolist()) for row in aligned] == [
+        sorted([(k - 1) % 6, k, (k + 1) % 6]) for k in range(6)
+    ]
+    # Turned by one image step: image k of the known sweep looks where the query's
+    # image k - 1 does (the camera steps clockwise).
+    turned = overlapping_images(six, six, 2.0 * math.pi / 6, 0.3)
+    assert turned is not None
+    assert [sorted(row.tolist()) for row in turned] == [
+        sorted([(k - 2) % 6, (k - 1) % 6, k]) for k in range(6)
+    ]
+    unplaced = SweepFeatures(six.bearings, six.descriptors, PIXEL_RAD)
+    assert overlapping_images(unplaced, six, 0.0, 0.3) is None
+
+
+def test_matching_skips_images_that_cannot_overlap() -> None:
+    # Two images with identical descriptors, looking opposite ways: matched in full,
+    # the pair passes; with the layout, image 0 of one never meets image 1 of the other.
+    rng = np.random.default_rng(3)
+    desc = rng.integers(0, 256, (2, 32), dtype=np.uint8)
+    two = SweepFeatures(
+        np.zeros((2, 3)),
+        desc,
+        PIXEL_RAD,
+        np.array([0, 1], np.uint8),
+        np.array([0.0, math.pi]),
+        math.radians(80.0),
+    )
+    other = replace(two, descriptors=desc[::-1].copy())
+    ia, ib = _matches(two, other, 0.8)
+    assert sorted(zip(ia.tolist(), ib.tolist(), strict=True)) == [(0, 1), (1, 0)]
+    overlap = overlapping_images(two, other, 0.0, 0.3)
+    ia, ib = _matches(two, other, 0.8, overlap)
+    assert len(ia) == 0 and len(ib) == 0
