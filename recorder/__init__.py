@@ -3,14 +3,21 @@
 A log is an MCAP file of protobuf messages (Foxglove's well-known schemas where one
 fits, pipemap's own in ``schemas/pipemap_log.proto``); topics and metadata are
 named in :mod:`recorder.topics`. :func:`record_run` writes a run, :func:`read_log`
-reads one back, whole or up to where it was cut or damaged.
+reads one back: whole, up to where it was cut, or every chunk but the damaged ones.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from pipemap.recorder.reader import Integrity, LogChannel, LogContents, LogMessage, read_log
+from pipemap.recorder.reader import (
+    Damage,
+    Integrity,
+    LogChannel,
+    LogContents,
+    LogMessage,
+    read_log,
+)
 from pipemap.recorder.topics import FORMAT_VERSION, METADATA_RESULT, METADATA_RUN, TOPICS, Topic
 
 if TYPE_CHECKING:
@@ -50,6 +57,7 @@ __all__ = [
     "METADATA_RESULT",
     "METADATA_RUN",
     "TOPICS",
+    "Damage",
     "Integrity",
     "LogChannel",
     "LogContents",

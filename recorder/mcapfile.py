@@ -67,8 +67,6 @@ class Lost:
     end_ns: int | None = None
     #: Messages lost per channel id (from the chunk's message indexes), when known.
     counts: dict[int, int] = field(default_factory=dict)
-    #: Names of metadata records lost, when known.
-    metadata: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -513,8 +511,6 @@ class _Walker:
             self.lose_chunk(position, problem)
             return
         lost = Lost(position, problem if end is not None else f"{problem}; the framing is lost")
-        if opcode == Opcode.METADATA and end is not None:
-            lost.metadata.append("a metadata record")
         self.pending = None
         self.out.lost.append(lost)
 

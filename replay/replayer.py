@@ -6,6 +6,11 @@ asks for an active-vision probe, the probe sweeps the log holds for that visit
 answer it, matched by kind and move; a probe the log does not hold is answered
 ``None``, and the decision records it as missing. The same log and settings give
 the same map, byte for byte.
+
+What cannot be read is lost alone: a sweep with an image missing, undecodable or
+not a readable PNG is skipped with a warning, and the replay goes on. Where a visit
+is lost (its sweep skipped, or in a damaged part of the log), the map's path is
+broken there: the visits either side are not joined by an edge.
 """
 
 from __future__ import annotations
@@ -113,8 +118,6 @@ class Sweeps:
     sweeps: list[LoggedSweep] = field(default_factory=list)
     #: One line per sweep that was skipped, or message that could not be read.
     warnings: list[str] = field(default_factory=list)
-    #: Visits whose own sweep was skipped (an image lost, unreadable or missing).
-    lost_visits: set[int] = field(default_factory=set)
 
 
 def _seconds(t_ns: int) -> str:
@@ -146,8 +149,6 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
 
     def skip(sweep: _Sweep, why: str) -> None:
         out.warnings.append(f"{name}: {sweep.label()} skipped: {why}")
-        if not sweep.start.probe:
-            out.lost_visits.add(sweep.start.visit_id)
 
     for m in messages:
         if m.topic == Topic.IMAGE:

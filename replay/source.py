@@ -185,7 +185,7 @@ class PackedLog:
         """The messages again, as a source."""
         ends = self.ends.tolist()
         blob = self.blob
-        data = [blob[a:b] for a, b in zip([0, *ends[:-1]], ends, strict=True)]
+        data = [blob[a:b] for a, b in zip([0, *ends][:-1], ends, strict=True)]
         topics = [self.topics[t] for t in self.topic_of.tolist()]
         times, sequences = self.log_times_ns.tolist(), self.sequences.tolist()
         with gc_paused():

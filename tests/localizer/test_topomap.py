@@ -79,6 +79,31 @@ def test_consecutive_visits_add_labelled_edges_in_order() -> None:
     assert m.edges() == [MapEdge(0, 1, 1), MapEdge(1, 2, 2), MapEdge(2, 0, 3)]
 
 
+def test_a_lost_visit_breaks_the_path_and_adds_no_edge() -> None:
+    m = TopoMap()
+    m.visit(0)
+    m.visit(1)
+    assert m.previous == 1
+    m.lose_track()  # the visit after 1 was lost: 2 need not be 1's neighbour
+    assert m.previous is None
+    assert m.visit(2) is None
+    assert m.visit(0) == MapEdge(2, 0, 2)  # back on track: edges again
+    assert [(e.u, e.v) for e in m.edges()] == [(0, 1), (2, 0)]
+    assert m.visits == (0, 1, 2, 0)
+
+
+def test_after_a_lost_visit_the_last_junction_may_be_recognised_again() -> None:
+    """A pipe joins two different junctions, so a visit is never the junction it just
+    left; but after a lost visit the robot may be back where it was."""
+    from pipemap.localizer import Localizer, LocalizerConfig
+
+    localizer = Localizer(LocalizerConfig(distinct_consecutive=True))
+    localizer.map.visit(0)
+    assert localizer._excluded() == 0
+    localizer.map.lose_track()
+    assert localizer._excluded() is None
+
+
 def test_retraversing_an_edge_forward_adds_nothing() -> None:
     m = _built([0, 1, 2])
     assert m.visit(1) is None  # 2 -> 1 is edge 1-2 backwards
