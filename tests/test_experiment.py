@@ -11,9 +11,9 @@ import cv2
 import numpy as np
 import pytest
 
-from pipemap.cli.experiment import CONDITIONS, IMAGE_COUNTS, STARTS
-from pipemap.cli.experiment_report import FILES
-from pipemap.cli.plots import SAME, Box, box_plot
+from pipemap.batch.experiment import CONDITIONS, IMAGE_COUNTS, STARTS
+from pipemap.batch.experiment_report import FILES
+from pipemap.batch.plots import SAME, Box, box_plot
 from pipemap.replay import FileSource, pair_statistics, replay, true_sweeps
 
 

@@ -51,6 +51,12 @@ def _run(argv: Sequence[str] | None) -> int:
         from pipemap.cli.experiment_command import run_experiment
 
         return run_experiment(args, sys.stdout, sys.stderr)
+    if args.command in ("batch", "batch-report"):
+        from pipemap.cli import batch_command
+
+        if args.command == "batch":
+            return batch_command.run_batch_command(args, sys.stdout, sys.stderr)
+        return batch_command.run_batch_report(args, sys.stdout)
     if args.command == "view":
         from pipemap.cli.view_command import run_view
 
@@ -63,7 +69,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return _run(argv)
     except PipemapError as exc:
-        print(f"pipemap: error: {exc}", file=sys.stderr)
+        # One line per mistake (a SPEC may have several), each with the prefix.
+        for line in str(exc).splitlines() or [type(exc).__name__]:
+            print(f"pipemap: error: {line}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("pipemap: interrupted", file=sys.stderr)
