@@ -30,6 +30,7 @@ from pipemap import __version__
 from pipemap.batch.results import (
     RESULT_FILES,
     read_result,
+    result_row,
     write_failed,
     write_run,
     write_table,
@@ -54,6 +55,8 @@ BATCH_ENTRIES = ("runs", "spec.toml", *RESULT_FILES)
 CONNECT_TIMEOUT_S = 60.0
 #: How often the progress is refreshed while no run finishes.
 TICK_S = 1.0
+#: How often, at most, the results table is rewritten while runs finish (and at the end).
+TABLE_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -325,18 +328,27 @@ def run_batch(
     Ctrl-C stops the batch: running tasks are cancelled, every finished run stays,
     and the summary says ``interrupted``.
     """
+    _quiet_ray(plan.options.address)  # before Ray is imported: it reads them then
     import ray
 
     spec, out = plan.spec, plan.out
     pending = plan.pending
     summary = BatchSummary(total=len(spec.points), skipped=len(plan.complete))
     started = time.perf_counter()
-    docs: dict[str, Mapping[str, Any]] = {}
+    rows: dict[str, dict[str, Any]] = {}
     for run_id in plan.complete:
         doc = read_result(out, run_id)
         if doc is not None:
-            docs[run_id] = doc
+            rows[run_id] = result_row(out, doc)
     _prepare_folder(plan)
+    written = [0.0]
+
+    def table(now: bool = False) -> list[dict[str, Any]]:
+        """Rewrite the table, at most every TABLE_S unless ``now``."""
+        if now or time.perf_counter() - written[0] >= TABLE_S:
+            written[0] = time.perf_counter()
+            return write_table(out, spec, rows.values(), __version__)
+        return []
 
     def event(kind: str, point: RunPoint | None, doc: Mapping[str, Any] | None) -> None:
         if progress is not None:
@@ -360,20 +372,23 @@ def run_batch(
             else:
                 doc = write_failed(out, point, why)
                 summary.failed += 1
-            docs[point.run_id] = doc
+            rows[point.run_id] = result_row(out, doc)
             summary.done += 1
             event(doc["status"], point, doc)
         if outcome is not None:
             summary.cpu_s += float(outcome.get("cpu_s", 0.0))
-        write_table(out, spec, docs.values(), __version__)
+        table()
 
     queue = _recordings(pending)
     running: dict[Any, tuple[RunPoint, ...]] = {}
+    if not queue:  # nothing to make: no need for Ray
+        summary.rows = table(now=True)
+        return summary
     with ray_session(plan.options.address, plan.options.workers) as workers:
         summary.workers = workers
         remote = ray.remote(num_cpus=1, max_retries=1, retry_exceptions=True)(task)
         keep = plan.options.keep_logs
-        write_table(out, spec, docs.values(), __version__)
+        table(now=True)
         event("start", None, None)
         try:
             while queue or running:
@@ -397,6 +412,6 @@ def run_batch(
             for ref in running:
                 with contextlib.suppress(Exception):
                     ray.cancel(ref, force=True)
+    summary.rows = table(now=True)
     summary.wall_s = time.perf_counter() - started
-    summary.rows = write_table(out, spec, docs.values(), __version__)
     return summary

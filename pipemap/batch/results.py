@@ -158,7 +158,7 @@ def write_run(
         **_base(point),
         "status": "ok",
         "reason": None,
-        "record": outcome["record"],
+        "record": {**outcome["record"], "recording_cpu_s": round(outcome["cpu_s"], 3)},
         "score": {k: score[k] for k in ("map_correct", "visits", "decisions")},
         "score_wall_s": round(run["score_wall_s"], 3),
         "worker": outcome["worker"],
@@ -229,12 +229,12 @@ def _atomic_write(path: Path, text: str) -> None:
 
 
 def write_table(
-    out: Path, spec: BatchSpec, docs: Iterable[Mapping[str, Any]], version: str
+    out: Path, spec: BatchSpec, rows: Iterable[Mapping[str, Any]], version: str
 ) -> list[dict[str, Any]]:
-    """Write ``results.csv`` and ``results.json`` with a row per finished run, in the
-    grid's order; returns the rows."""
+    """Write ``results.csv`` and ``results.json`` with a row per finished run (rows of
+    :func:`result_row`), in the grid's order; returns the rows in that order."""
     order = {p.run_id: k for k, p in enumerate(spec.points)}
-    rows = [result_row(out, d) for d in sorted(docs, key=lambda d: order[d["run_id"]])]
+    rows = [dict(r) for r in sorted(rows, key=lambda r: order[r["run_id"]])]
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
     writer.writerow(COLUMNS)

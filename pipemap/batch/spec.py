@@ -192,7 +192,7 @@ class RunPoint:
             self.rule,
             f"t{self.threshold!r}",
         ]
-        return "-".join(re.sub(r"[^A-Za-z0-9._]", "", p) for p in parts)
+        return "-".join(re.sub(r"[^A-Za-z0-9._-]", "", p) for p in parts)
 
     @property
     def recording_key(self) -> tuple[Any, ...]:
@@ -375,8 +375,11 @@ def parse_spec(text: str, name: str = "SPEC") -> BatchSpec:
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(name, [f"not valid TOML: {exc}"]) from None
     mistakes: list[str] = []
+    stray = [k for k in doc if k in GRID_KEYS]
+    if stray:
+        mistakes.append(f"{', '.join(stray)}: grid keys go under the [grid] heading")
     for key in doc:
-        if key not in ("grid", "description"):
+        if key not in ("grid", "description", *GRID_KEYS):
             mistakes.append(f"unknown top-level key {key!r} (a SPEC has [grid] and description)")
     description = doc.get("description", "")
     if not isinstance(description, str):
@@ -384,7 +387,8 @@ def parse_spec(text: str, name: str = "SPEC") -> BatchSpec:
         description = ""
     grids = doc.get("grid")
     if grids is None:
-        mistakes.append("no [grid] table (its keys each hold a list of values to run)")
+        if not stray:
+            mistakes.append("no [grid] table (its keys each hold a list of values to run)")
         grids = []
     elif isinstance(grids, dict):
         grids = [grids]

@@ -1,8 +1,8 @@
 """The ``pipemap`` command: parse, configure logging, run one command, one exit path.
 
 Library code raises :class:`pipemap.errors.PipemapError` for bad input; here alone
-it is caught, printed as one line naming what is wrong, and turned into exit status
-2. Any other exception is a bug and keeps its traceback. Commands import their heavy
+it is caught, printed as one line naming what is wrong (a line per mistake when a
+SPEC has several), and turned into exit status 2. Any other exception is a bug and keeps its traceback. Commands import their heavy
 dependencies lazily so that ``pipemap --help`` is instant.
 """
 
