@@ -239,6 +239,13 @@ def _connect(address: str) -> None:
         raise InputError(f"--address {address}: cannot join the Ray cluster: {detail}")
 
 
+def _cluster_cpus() -> int:
+    import ray
+
+    resources = ray.cluster_resources()  # type: ignore[no-untyped-call]
+    return max(1, int(resources.get("CPU", 1)))
+
+
 @contextlib.contextmanager
 def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
     """Ray started on this machine (``address`` ``None``) or joined at ``address``,
@@ -248,7 +255,7 @@ def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
     import ray
 
     if ray.is_initialized():
-        yield workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+        yield workers or _cluster_cpus()
         return
     if address is None:
         cpus = workers or os.cpu_count() or 1
@@ -263,7 +270,7 @@ def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
         )
     else:
         _connect(address)
-        cpus = workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+        cpus = workers or _cluster_cpus()
     try:
         yield cpus
     finally:
@@ -394,7 +401,7 @@ def run_batch(
             while queue or running:
                 while queue and len(running) < workers:
                     points = queue.pop(0)
-                    running[remote.remote(points, keep)] = points
+                    running[remote.remote(points, keep)] = points  # type: ignore[call-arg]
                 ready, _ = ray.wait(list(running), num_returns=1, timeout=TICK_S)
                 if not ready:
                     event("tick", None, None)

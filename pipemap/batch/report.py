@@ -50,7 +50,8 @@ def _value(row: Mapping[str, Any], metric: str) -> float | None:
         visits = row.get("visits")
         if not visits:
             return None
-        return (row["decisions.correct_known"] + row["decisions.correct_new"]) / visits
+        right = row["decisions.correct_known"] + row["decisions.correct_new"]
+        return float(right) / float(visits)
     value = row.get(metric)
     if value is None or isinstance(value, str):
         return None

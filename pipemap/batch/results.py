@@ -234,11 +234,11 @@ def write_table(
     """Write ``results.csv`` and ``results.json`` with a row per finished run (rows of
     :func:`result_row`), in the grid's order; returns the rows in that order."""
     order = {p.run_id: k for k, p in enumerate(spec.points)}
-    rows = [dict(r) for r in sorted(rows, key=lambda r: order[r["run_id"]])]
+    ordered = [dict(r) for r in sorted(rows, key=lambda r: order[r["run_id"]])]
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
     writer.writerow(COLUMNS)
-    for row in rows:
+    for row in ordered:
         writer.writerow([_csv_value(row[c]) for c in COLUMNS])
     _atomic_write(out / "results.csv", text.getvalue())
     table = {
@@ -246,18 +246,18 @@ def write_table(
         "spec": spec.name,
         "description": spec.description,
         "runs_total": len(spec.points),
-        "runs_finished": len(rows),
-        "runs_failed": sum(1 for r in rows if r["status"] != "ok"),
+        "runs_finished": len(ordered),
+        "runs_failed": sum(1 for r in ordered if r["status"] != "ok"),
         "rules": {
-            name: {"flags": list(r.flags), "description": r.description}
-            for name, r in RULES.items()
+            name: {"flags": list(rule.flags), "description": rule.description}
+            for name, rule in RULES.items()
             if any(p.rule == name for p in spec.points)
         },
         "columns": list(COLUMNS),
-        "runs": rows,
+        "runs": ordered,
     }
     _atomic_write(out / "results.json", json.dumps(table, indent=2, allow_nan=False) + "\n")
-    return rows
+    return ordered
 
 
 def read_table(out: Path) -> dict[str, Any]:

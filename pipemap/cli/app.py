@@ -2,8 +2,9 @@
 
 Library code raises :class:`pipemap.errors.PipemapError` for bad input; here alone
 it is caught, printed as one line naming what is wrong (a line per mistake when a
-SPEC has several), and turned into exit status 2. Any other exception is a bug and keeps its traceback. Commands import their heavy
-dependencies lazily so that ``pipemap --help`` is instant.
+SPEC has several), and turned into exit status 2. Any other exception is a bug and
+keeps its traceback. Commands import their heavy dependencies lazily so that
+``pipemap --help`` is instant.
 """
 
 from __future__ import annotations

@@ -230,10 +230,8 @@ def ray_head() -> Iterator[tuple[str, dict[str, str]]]:
     finally:
         # `ray stop` would stop every Ray of this machine: stop ours, by its process.
         head.send_signal(signal.SIGTERM)
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):
             head.wait(timeout=60)
-        except subprocess.TimeoutExpired:
-            pass
         with contextlib.suppress(ProcessLookupError):
             os.killpg(head.pid, signal.SIGKILL)
         head.wait()
