@@ -4,11 +4,12 @@ Installed, everything lives under ``pipemap``; in the repository the layers keep
 their top-level folders (``sim/``, ``recorder/``, ``replay/``, ``localizer/``), mapped
 to ``pipemap.sim`` and so on by ``pyproject.toml``. The data travels one way,
 ``sim -> recorder -> log -> replay -> localizer -> map``; ``pipemap.errors`` sits
-below every layer and imports nothing of pipemap; only the command line,
-``pipemap.cli``, may depend on everything. Every ``.py`` file is parsed; every import
-it makes (at module level or inside a function, absolute or relative, and
-``importlib.import_module`` / ``__import__`` of a literal name) is checked against the
-arrows allowed below. The localizer is held to more: only the standard library,
+below every layer and imports nothing of pipemap; the batch machinery,
+``pipemap.batch``, may import every layer and is imported by the command line alone;
+only the command line, ``pipemap.cli``, may depend on everything. Every ``.py`` file
+is parsed; every import it makes (at module level or inside a function, absolute or
+relative, and ``importlib.import_module`` / ``__import__`` of a literal name) is checked
+against the arrows allowed below. The localizer is held to more: only the standard library,
 numpy, scipy, OpenCV and networkx, and nothing that touches files, the wall clock or
 the logging set-up.
 """
@@ -63,6 +64,16 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.localizer",
         "pipemap.imagesets",
         "pipemap.errors",
+    ),
+    # Batch experiments: below the command line only, above every layer.
+    "pipemap.batch": (
+        "pipemap.batch",
+        "pipemap.recorder",
+        "pipemap.replay",
+        "pipemap.sim",
+        "pipemap.localizer",
+        "pipemap.errors",
+        "pipemap.__version__",
     ),
     "pipemap.cli": ("pipemap",),
     "pipemap.__main__": ("pipemap.cli",),  # ``python -m pipemap``
@@ -408,6 +419,18 @@ BAD_SOURCES = [
     pytest.param(
         "replay/x.py", "import pipemap.sim.world\n", "'pipemap.sim.world'", id="replay-sim"
     ),
+    pytest.param(
+        "replay/x.py", "from pipemap.batch import run_batch\n", "'pipemap.batch", id="replay-batch"
+    ),
+    pytest.param(
+        "recorder/x.py", "import pipemap.batch.spec\n", "'pipemap.batch.spec'", id="recorder-batch"
+    ),
+    pytest.param(
+        "pipemap/batch/x.py",
+        "from pipemap.cli.parser import build_parser\n",
+        "'pipemap.cli.parser.build_parser'",
+        id="batch-cli",
+    ),
     pytest.param("pipemap/errors.py", "import numpy\n", "'numpy'", id="errors-numpy"),
     pytest.param("pipemap/errors.py", "from . import cli\n", "'pipemap.cli'", id="errors-cli"),
     pytest.param(
@@ -456,6 +479,14 @@ GOOD_SOURCES = [
         "from pipemap.replay import score\nfrom pipemap.recorder import Recorder\n"
         "import pipemap.sim\nfrom . import parser\n",
         id="cli",
+    ),
+    pytest.param(
+        "pipemap/batch/x.py",
+        "from pipemap import __version__\nfrom pipemap.recorder import record_run\n"
+        "from pipemap.replay import score\nfrom pipemap.sim.network import build_network\n"
+        "from pipemap.localizer import PAPER\nfrom pipemap.errors import InputError\n"
+        "from . import spec\nimport ray\n",
+        id="batch",
     ),
     pytest.param("pipemap/errors.py", "from __future__ import annotations\n", id="errors"),
 ]

@@ -1,4 +1,5 @@
-"""``pipemap experiment paper``: pair statistics, the written results, the command."""
+"""``pipemap experiment paper``: pair statistics, the written results, the command (a
+preset SPEC run by the batch machinery, each run scored by two rules)."""
 
 from __future__ import annotations
 
@@ -11,9 +12,9 @@ import cv2
 import numpy as np
 import pytest
 
-from pipemap.cli.experiment import CONDITIONS, IMAGE_COUNTS, STARTS
-from pipemap.cli.experiment_report import FILES
-from pipemap.cli.plots import SAME, Box, box_plot
+from pipemap.batch.experiment import CONDITIONS, IMAGE_COUNTS, STARTS
+from pipemap.batch.experiment_report import FILES
+from pipemap.batch.plots import SAME, Box, box_plot
 from pipemap.replay import FileSource, pair_statistics, replay, true_sweeps
 
 
@@ -50,7 +51,8 @@ def experiment(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("experiment") / "results"
     done = pipemap("experiment", "paper", "--out", str(out), "--resolution", "32")
     assert done.returncode == 0, done.stderr
-    assert "[19/19]" in done.stderr and "starts" in done.stdout
+    # 19 recordings, each scored by the paper's rule and pipemap's defaults.
+    assert "[38/38]" in done.stderr and "starts" in done.stdout
     return out
 
 
@@ -59,11 +61,14 @@ def test_the_experiment_writes_every_table_and_figure(experiment: Path) -> None:
         assert (experiment / name).stat().st_size > 0, name
     doc = json.loads((experiment / "experiment.json").read_text())
     assert doc["settings"] == {"resolution_px": 32, "seed": 0, "threshold": 0.36}
+    assert doc["rules"]["paper"]["flags"] == ["--no-two-view", "--allow-repeat"]
+    assert doc["rules"]["default"]["flags"] == []
     assert set(doc["conditions"]) == {"paper", "aligned"}
     for runs in doc["conditions"].values():
         assert list(runs) == list(CONDITIONS)
         for run in runs.values():
-            assert run["visits"] == 13
+            assert list(run["rules"]) == ["paper", "default"]
+            assert {r["visits"] for r in run["rules"].values()} == {13}
             assert run["pairs"]["same"]["n"] == 10 and run["pairs"]["different"]["n"] == 68
     assert [int(n) for n in doc["images"]] == list(IMAGE_COUNTS)
     assert [r["images_per_sweep"] for r in doc["images"].values()] == list(IMAGE_COUNTS)
@@ -74,6 +79,14 @@ def test_the_experiment_writes_every_table_and_figure(experiment: Path) -> None:
     for heading in ("Table 1", "Table 2", "Figure 6", "Figure 7", "every start"):
         assert heading in text
     assert "0.700 ± 0.157" in text  # the paper's numbers, beside ours
+    # Every table of decisions names its rule, both side by side.
+    assert "`pipemap score --no-two-view --allow-repeat`" in text
+    assert "`pipemap score` (no flags)" in text
+    assert text.count("| paper's rule: right |") == 2
+    assert "pipemap's defaults: right | map" in text and "Map correct from" in text
+    # The batch's own files: the run folders and the table.
+    with (experiment / "results.csv").open() as f:
+        assert sum(1 for _ in f) == 1 + 38
     for name in ("figure6_images.png", "figure7_similarity.png"):
         image = cv2.imread(str(experiment / name))
         assert image is not None and image.shape[2] == 3
@@ -83,6 +96,17 @@ def test_the_experiment_refuses_to_replace_results(experiment: Path) -> None:
     done = pipemap("experiment", "paper", "--out", str(experiment))
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "--force" in done.stderr
+
+
+def test_the_experiment_resumes_without_running_again(experiment: Path) -> None:
+    before = (experiment / "experiment.json").read_text()
+    done = pipemap(
+        "experiment", "paper", "--out", str(experiment), "--resolution", "32", "--resume"
+    )
+    assert done.returncode == 0, done.stderr
+    assert "0 runs to make" in done.stderr and "38 complete runs kept" in done.stderr
+    after = json.loads((experiment / "experiment.json").read_text())
+    assert after["conditions"] == json.loads(before)["conditions"]
 
 
 @pytest.mark.parametrize(

@@ -1,10 +1,11 @@
 """The ``pipemap`` command: parse, configure logging, run one command, one exit path.
 
 Library code raises :class:`pipemap.errors.PipemapError` for bad input; here alone
-it is caught, printed as one line naming what is wrong, and turned into exit status
-2 (3 for an output that could not be written whole: a full disk, a killed writer).
-Any other exception is a bug and keeps its traceback. Commands import their heavy
-dependencies lazily so that ``pipemap --help`` is instant.
+it is caught, printed as one line naming what is wrong (a line per mistake when a
+SPEC has several), and turned into exit status 2 (3 for an output that could not be
+written whole: a full disk, a killed writer). Any other exception is a bug and keeps
+its traceback. Commands import their heavy dependencies lazily so that ``pipemap
+--help`` is instant.
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ COMMANDS: dict[str, str] = {
     "replay": "pipemap.cli.replay_commands:run_replay",
     "score": "pipemap.cli.replay_commands:run_score",
     "experiment": "pipemap.cli.experiment_command:run_experiment",
+    "batch": "pipemap.cli.batch_command:run_batch_command",
+    "batch-report": "pipemap.cli.batch_command:run_batch_report",
     "view": "pipemap.cli.view_command:run_view",
 }
 
@@ -67,7 +70,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"pipemap: error: {exc}", file=sys.stderr)
         return WRITE_FAILED
     except PipemapError as exc:
-        print(f"pipemap: error: {exc}", file=sys.stderr)
+        # One line per mistake (a SPEC may have several), each with the prefix.
+        for line in str(exc).splitlines() or [type(exc).__name__]:
+            print(f"pipemap: error: {line}", file=sys.stderr)
         return BAD_INPUT
     except KeyboardInterrupt:
         print("pipemap: interrupted", file=sys.stderr)

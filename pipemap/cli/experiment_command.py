@@ -1,64 +1,74 @@
-"""``pipemap experiment paper --out DIR``: run the paper's experiments, write the results."""
+"""``pipemap experiment paper --out DIR``: run the paper's preset SPEC as a batch, then
+write the experiment's markdown, JSON and figures from its results."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import TextIO
-
-from pipemap.cli.outputs import output_folder
 
 __all__ = ["run_experiment"]
 
 
-def _earlier(keep_logs: bool) -> Callable[[Path], list[str]]:
-    """What of an output folder the experiment would replace: its result files, and
-    its logs with ``--keep-logs``."""
-    from pipemap.cli.experiment_report import FILES
-
-    def found(folder: Path) -> list[str]:
-        names = [name for name in FILES if (folder / name).exists()]
-        logs = folder / "logs"
-        if keep_logs and logs.is_dir() and any(logs.iterdir()):
-            names.append("logs/")
-        return names
-
-    return found
-
-
 def run_experiment(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
-    """Run every run of the experiment, then write its markdown, JSON and figures."""
+    """Run every run of the experiment on Ray, then write its files."""
     from pipemap import __version__
-    from pipemap.cli.experiment import ExperimentSettings, RunOutcome, paper_experiment
-    from pipemap.cli.experiment_report import write_experiment
+    from pipemap.batch import BatchOptions, plan_batch, run_batch
+    from pipemap.batch.experiment import (
+        EXPERIMENT_RULES,
+        ExperimentSettings,
+        experiment_result,
+        paper_spec,
+    )
+    from pipemap.batch.experiment_report import FILES, write_experiment
+    from pipemap.cli.batch_command import format_duration, progress_printer
 
-    folder = output_folder(args.out, "--out", args.force, _earlier(args.keep_logs))
-    logs = None
-    if args.keep_logs:
-        logs = folder / "logs"
-        logs.mkdir(parents=True, exist_ok=True)
+    folder = Path(args.out)
     settings = ExperimentSettings(args.resolution, args.seed, args.threshold)
+    spec = paper_spec(settings)
+    options = BatchOptions(
+        address=args.address,
+        workers=args.workers,
+        keep_logs=args.keep_logs,
+        resume=args.resume,
+        force=args.force,
+        extra_entries=FILES,
+    )
+    plan = plan_batch(spec, folder, options)
+    err.write(
+        f"experiment paper: {len(plan.pending)} runs to make ({spec.recordings()} recordings, "
+        f"each scored by {' and '.join(EXPERIMENT_RULES)})"
+        + (f"; {len(plan.complete)} complete runs kept\n" if plan.complete else "\n")
+    )
     started = time.perf_counter()
-
-    def progress(done: int, total: int, name: str, outcome: RunOutcome | None) -> None:
-        if outcome is None:
-            err.write(f"[{done + 1:2d}/{total}] {name} ...")
-        else:
-            score = outcome.score
-            verdict = "map correct" if score["map_correct"] else "map WRONG"
-            err.write(f" {verdict}, {score['visits']} visits, {outcome.record_wall_s:.1f} s\n")
-        err.flush()
-
-    result = paper_experiment(settings, logs, progress)
+    summary = run_batch(plan, progress_printer(err))
+    if err.isatty():
+        err.write("\n")
+    if summary.interrupted:
+        err.write(
+            f"pipemap: interrupted: {summary.done} finished runs kept in {folder}; "
+            "--resume makes the rest\n"
+        )
+        return 130
+    if summary.failed:
+        err.write(
+            f"pipemap: {summary.failed} runs failed (reasons in {folder}/results.csv); "
+            "--resume tries them again\n"
+        )
+        return 1
     wall = time.perf_counter() - started
+    result = experiment_result(folder, settings)
     doc = write_experiment(folder, result, wall, __version__)
-    correct = sum(1 for r in doc["starts"].values() if r["map_correct"])
+    starts = ", ".join(
+        f"{sum(1 for r in doc['starts'].values() if r['rules'][rule]['map_correct'])}/"
+        f"{len(doc['starts'])} ({rule})"
+        for rule in EXPERIMENT_RULES
+    )
     out.write(
         f"experiment paper: {len(doc['conditions']['paper']) * 2} condition runs, "
-        f"{len(doc['images'])} image counts, map correct from {correct}/{len(doc['starts'])} "
-        f"starts; results in {folder}/experiment.md ({wall:.0f} s)\n"
+        f"{len(doc['images'])} image counts, map correct from {starts} starts; "
+        f"results in {folder}/experiment.md ({format_duration(wall)})\n"
     )
     return 0

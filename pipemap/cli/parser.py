@@ -231,6 +231,36 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
     )
 
 
+def add_batch_options(p: argparse.ArgumentParser) -> None:
+    """Where and how a batch runs, and what becomes of an existing output folder."""
+    p.add_argument(
+        "--address",
+        default=None,
+        metavar="HOST:PORT",
+        help="run on the Ray cluster whose head is there (as `ray start --head` prints it); "
+        "default: start Ray on this machine",
+    )
+    p.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="runs at once (default: this machine's cores, or the cluster's CPUs)",
+    )
+    p.add_argument(
+        "--keep-logs",
+        action="store_true",
+        help="keep every run's log as DIR/runs/<run-id>/run.mcap",
+    )
+    again = p.add_mutually_exclusive_group()
+    again.add_argument(
+        "--resume", action="store_true", help="keep the complete runs in DIR, make the others"
+    )
+    again.add_argument(
+        "--force", action="store_true", help="delete earlier results in DIR and start afresh"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The full ``pipemap`` parser with one subparser per command."""
     parser = _OneLineParser(
@@ -400,8 +430,36 @@ def build_parser() -> argparse.ArgumentParser:
         default=PAPER_THRESHOLD,
         help=f"similarity threshold (default {PAPER_THRESHOLD}); see record --threshold",
     )
-    p_exp.add_argument("--keep-logs", action="store_true", help="keep every run's log in DIR/logs")
-    p_exp.add_argument("--force", action="store_true", help="replace earlier results in DIR")
+    add_batch_options(p_exp)
+
+    p_batch = sub.add_parser(
+        "batch",
+        help="run a grid of record + score runs on this machine or a Ray cluster",
+        description="Run every run of SPEC.toml's [grid] (the Cartesian product of its "
+        "lists: network, seed, start, condition, resolution, images, align_sweeps, rule, "
+        "threshold) on Ray: each run is recorded, replayed and scored as pipemap record "
+        "and pipemap score do. Writes DIR/runs/<run-id>/ and one table, DIR/results.csv "
+        "and DIR/results.json. See docs/batch.md.",
+    )
+    p_batch.add_argument("spec", metavar="SPEC.toml", help="the grid to run (TOML)")
+    p_batch.add_argument("--out", required=True, metavar="DIR", help="folder for the results")
+    add_batch_options(p_batch)
+
+    p_report = sub.add_parser(
+        "batch-report",
+        help="summarise a batch: grouped tables and figures (Markdown + PNG)",
+        description="Group a batch's runs by the grid keys that vary (seeds pooled) and "
+        "write DIR/report.md and report.json (mean, std, min, max per group) with a Figure 7 "
+        "style box plot of same/different similarity and a Table 2 style plot of the "
+        "rotation error.",
+    )
+    p_report.add_argument("dir", metavar="DIR", help="a folder written by pipemap batch")
+    p_report.add_argument(
+        "--by",
+        default=None,
+        metavar="KEY[,KEY...]",
+        help="group by these grid keys (default: every key that varies, seed aside)",
+    )
 
     p_info = sub.add_parser(
         "info",

@@ -1,5 +1,6 @@
-"""Box plots drawn with OpenCV, for the experiment's figures (no plotting library
-is a dependency). Deterministic: the same values give the same PNG bytes."""
+"""Box plots drawn with OpenCV, for the experiment's and the batch report's figures
+(no plotting library is a dependency). Deterministic: the same values give the same
+PNG bytes."""
 
 from __future__ import annotations
 
@@ -58,10 +59,11 @@ def box_plot(
     def y_of(v: float) -> int:
         return int(round(bottom - (min(max(v, lo), hi) - lo) / (hi - lo) * (bottom - top)))
 
+    digits = 1 if hi - lo >= 1.0 else 2 if hi - lo >= 0.1 else 3
     for k in range(11):
         v = lo + (hi - lo) * k / 10
         cv2.line(image, (left, y_of(v)), (right, y_of(v)), _GRID, 1)
-        _text(image, f"{v:.1f}", left - 34, y_of(v) + 4, 0.4)
+        _text(image, f"{v:.{digits}f}", left - 40, y_of(v) + 4, 0.4)
     cv2.line(image, (left, top), (left, bottom), _INK, 1)
     cv2.line(image, (left, bottom), (right, bottom), _INK, 1)
     _text(image, title, width // 2, 28, 0.55, centre=True)

@@ -1,5 +1,10 @@
 """The files of ``pipemap experiment paper``: markdown, JSON and two figures.
 
+Every table that shows decisions names its rule and shows both of
+:data:`batch.experiment.EXPERIMENT_RULES` side by side: the paper's (``paper``) and
+pipemap's defaults (``default``). The pair statistics (Table 1, Figure 7, the pairs
+of Table 2) compare sweeps by the similarity alone, whatever the rule.
+
 The paper's own numbers are stated beside ours where we have them. We have the
 ones its authors' image sets were described with (the team's ``paper_imagesets``
 README, from Li et al. 2023): same-junction similarity 0.700 +- 0.157 at the
@@ -16,13 +21,15 @@ from typing import Any
 
 import cv2
 
-from pipemap.cli.experiment import (
+from pipemap.batch.experiment import (
     CONDITIONS,
+    EXPERIMENT_RULES,
     ExperimentResult,
     RunOutcome,
     summary,
 )
-from pipemap.cli.plots import DIFFERENT, SAME, Box, box_plot
+from pipemap.batch.plots import DIFFERENT, SAME, Box, box_plot
+from pipemap.batch.spec import RULES
 
 __all__ = ["PAPER", "experiment_document", "write_experiment"]
 
@@ -38,12 +45,22 @@ PAPER: dict[str, Any] = {
 FILES = ("experiment.md", "experiment.json", "figure7_similarity.png", "figure6_images.png")
 
 
+def _rule_document(score: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "map_correct": score["map_correct"],
+        "visits": score["visits"],
+        "decisions": score["decisions"],
+        "similarity": score["similarity"],
+        "rotation_error_known_visits_rad": score["rotation_error_rad"]["known"],
+        "latency_ms": score["latency_ms"],
+    }
+
+
 def _run_document(run: RunOutcome, threshold: float) -> dict[str, Any]:
     pairs = run.pairs
-    score = run.score
     separated = bool(pairs.same and pairs.different) and min(pairs.same) > max(pairs.different)
     return {
-        "log": score["log"],
+        "name": run.name,
         "condition": run.condition,
         "start": run.start,
         "images_per_sweep": run.images,
@@ -58,12 +75,7 @@ def _run_document(run: RunOutcome, threshold: float) -> dict[str, Any]:
             "same_below_threshold": sum(1 for v in pairs.same if v < threshold),
             "different_at_or_above_threshold": sum(1 for v in pairs.different if v >= threshold),
         },
-        "map_correct": score["map_correct"],
-        "visits": score["visits"],
-        "decisions": score["decisions"],
-        "similarity": score["similarity"],
-        "rotation_error_known_visits_rad": score["rotation_error_rad"]["known"],
-        "latency_ms": score["latency_ms"],
+        "rules": {rule: _rule_document(run.scores[rule]) for rule in EXPERIMENT_RULES},
     }
 
 
@@ -77,6 +89,10 @@ def experiment_document(result: ExperimentResult, wall_s: float, version: str) -
             "resolution_px": result.settings.resolution_px,
             "seed": result.settings.seed,
             "threshold": t,
+        },
+        "rules": {
+            rule: {"flags": list(RULES[rule].flags), "description": RULES[rule].description}
+            for rule in EXPERIMENT_RULES
         },
         "wall_s": round(wall_s, 1),
         "paper": PAPER,
@@ -108,6 +124,38 @@ def _verdict(doc: dict[str, Any]) -> str:
     return "correct" if doc["map_correct"] else "WRONG"
 
 
+#: Column heads of a rule, as the tables name it.
+_RULE_HEADS = {"paper": "paper's rule", "default": "pipemap's defaults"}
+
+
+def _rule_line(rule: str) -> str:
+    flags = " ".join(RULES[rule].flags)
+    command = f"`pipemap score {flags}`" if flags else "`pipemap score` (no flags)"
+    return f"- **{_RULE_HEADS[rule]}** (rule `{rule}`, {command}): {RULES[rule].description}."
+
+
+def _decisions(run: dict[str, Any]) -> str:
+    """The decision cells of a run, one group per rule."""
+    cells = []
+    for rule in EXPERIMENT_RULES:
+        r = run["rules"][rule]
+        d = r["decisions"]
+        cells.append(f"{_right(r)} | {d['false_merge']} | {d['false_new']} | {_verdict(r)}")
+    return " | ".join(cells)
+
+
+def _decision_heads(first: str) -> list[str]:
+    heads, rules = [], []
+    for rule in EXPERIMENT_RULES:
+        name = _RULE_HEADS[rule]
+        heads += [f"{name}: right", "false merges", "false new", "map"]
+        rules += ["---"] * 4
+    return [
+        f"| {first} | " + " | ".join(heads) + " |",
+        "|" + "---|" * (first.count("|") + 1) + "|".join(rules) + "|",
+    ]
+
+
 def _markdown(doc: dict[str, Any]) -> str:
     s = doc["settings"]
     t = s["threshold"]
@@ -117,8 +165,15 @@ def _markdown(doc: dict[str, Any]) -> str:
         "",
         f"`pipemap experiment paper`, pipemap {doc['pipemap_version']}: network `paper`, "
         f"{s['resolution_px']}x{s['resolution_px']} px, seed {s['seed']}, threshold {t}; "
-        f"{doc['wall_s']:.0f} s wall in all. Every run was recorded to a log, replayed and "
-        "scored as `pipemap record` and `pipemap score` do.",
+        f"{doc['wall_s']:.0f} s wall in all. Its SPEC is `experiments/paper.toml` (at these "
+        "settings); every run was recorded to a log once, then replayed and scored from "
+        "that log as `pipemap record` and `pipemap score` do, by two decision rules:",
+        "",
+        *[_rule_line(rule) for rule in EXPERIMENT_RULES],
+        "",
+        "Every table of decisions shows both rules side by side; the pair statistics "
+        "(Table 1, Figure 7, the pairs of Table 2) compare sweeps by the similarity alone "
+        "and are the same under both.",
         "",
         "Two sweep conventions: the **paper's sweeps** start straight ahead, so two visits "
         "of a right-angle junction see views 90 degrees apart (1.5 camera steps); pipemap's "
@@ -134,7 +189,7 @@ def _markdown(doc: dict[str, Any]) -> str:
         "error about 0.05 rad. The paper's per-condition table entries are not in any source "
         "we have, so they are not given here.",
         "",
-        "## Table 1: similarity of image-set pairs",
+        "## Table 1: similarity of image-set pairs (any rule)",
         "",
         "Every unordered pair of the run's 13 visit sweeps (probe sweeps aside), split by the "
         "true junction: 10 same-junction pairs, 68 different-junction pairs.",
@@ -157,50 +212,48 @@ def _markdown(doc: dict[str, Any]) -> str:
             )
     lines += [
         "",
-        "## Decisions of the replayed localizer",
+        "## Decisions of the replayed localizer, by rule",
         "",
         "Each visit decided in order, as in the run (active vision uses the probe sweeps "
-        "in the log; only the `active` condition has them). Similarity is the visit's best "
-        "match: to its own junction for a revisit (known), to the most similar other one "
-        "for a first visit (unknown).",
+        "in the log; only the `active` condition has them).",
         "",
-        "| condition | sweeps | right | false merges | false new | map | known visits | "
-        "first visits |",
-        "|---|---|---|---|---|---|---|---|",
+        *_decision_heads("condition | sweeps"),
     ]
     for convention, runs in doc["conditions"].items():
         for c in CONDITIONS:
-            r = runs[c]
-            d = r["decisions"]
-            lines.append(
-                f"| {c} | {names[convention]} | {_right(r)} | {d['false_merge']} | "
-                f"{d['false_new']} | {_verdict(r)} | "
-                f"{_ms(r['similarity']['known'])} | {_ms(r['similarity']['unknown'])} |"
-            )
+            lines.append(f"| {c} | {names[convention]} | {_decisions(runs[c])} |")
     lines += [
         "",
         "## Table 2: rotation error",
         "",
-        "The paper's estimate (image shift x 60 degrees + pixel shift x fov/width) against "
-        "the simulator's heading change, in radians: over same-junction pairs, and over the "
-        "visits correctly recognised as known. Paper: about 0.05 rad.",
+        "In radians, against the simulator's heading change. Same-junction pairs: the "
+        "paper's estimate (image shift x 60 degrees + pixel shift x fov/width) between the "
+        "two sweeps, under any rule. Known visits: the visits each rule recognised "
+        "correctly, with that rule's estimate (the paper's rule: the NCC peak shift; "
+        "pipemap's defaults: the two-view fit). Paper: about 0.05 rad.",
         "",
-        "| condition | sweeps | pairs: mean | pairs: max | known visits: mean | "
-        "known visits: max |",
-        "|---|---|---|---|---|---|",
+        "| condition | sweeps | pairs: mean | pairs: max | "
+        + " | ".join(f"known visits, {_RULE_HEADS[rule]}: mean | max" for rule in EXPERIMENT_RULES)
+        + " |",
+        "|---|---|---|---|" + "---|---|" * len(EXPERIMENT_RULES),
     ]
     for convention, runs in doc["conditions"].items():
         for c in CONDITIONS:
             r = runs[c]
             p = r["pairs"]["rotation_error_rad"]
-            k = r["rotation_error_known_visits_rad"]
+            known = " | ".join(
+                f"{_num(k['mean'], 4)} | {_num(k['max'], 4)}"
+                for k in (
+                    r["rules"][rule]["rotation_error_known_visits_rad"] for rule in EXPERIMENT_RULES
+                )
+            )
             lines.append(
                 f"| {c} | {names[convention]} | {_num(p['mean'], 4)} | {_num(p['max'], 4)} | "
-                f"{_num(k['mean'], 4)} | {_num(k['max'], 4)} |"
+                f"{known} |"
             )
     lines += [
         "",
-        "## Figure 7: same against different junctions",
+        "## Figure 7: same against different junctions (any rule)",
         "",
         "![same and different similarity per condition](figure7_similarity.png)",
         "",
@@ -211,37 +264,43 @@ def _markdown(doc: dict[str, Any]) -> str:
         "a closer view.",
         "",
         "| images | same junction | different junctions | min same | max different | "
-        "right | map | decision ms (mean) |",
-        "|---|---|---|---|---|---|---|---|",
+        + " | ".join(f"{_RULE_HEADS[rule]}: right | map" for rule in EXPERIMENT_RULES)
+        + " |",
+        "|---|---|---|---|---|" + "---|---|" * len(EXPERIMENT_RULES),
     ]
     for n, r in doc["images"].items():
         p = r["pairs"]
+        decided = " | ".join(
+            f"{_right(r['rules'][rule])} | {_verdict(r['rules'][rule])}"
+            for rule in EXPERIMENT_RULES
+        )
         lines.append(
             f"| {n} | {_ms(p['same'])} | {_ms(p['different'])} | {_num(p['same']['min'])} | "
-            f"{_num(p['different']['max'])} | {_right(r)} | "
-            f"{_verdict(r)} | {_num(r['latency_ms']['mean'], 1)} |"
+            f"{_num(p['different']['max'])} | {decided} |"
         )
     lines += [
         "",
         "![similarity by images per sweep](figure6_images.png)",
         "",
-        "## Autonomous exploration from every start",
+        "## Autonomous exploration from every start, by rule",
         "",
-        "pipemap's defaults (aligned sweeps, active vision asks for probes the autonomous "
-        "robot does not make, so it decides without them).",
+        "Aligned sweeps; active vision asks for probes the autonomous robot does not make, "
+        "so each rule decides without them.",
         "",
-        "| start | run | visits | right | false merges | false new | map |",
-        "|---|---|---|---|---|---|---|",
+        *_decision_heads("start | run | visits"),
     ]
     for start, r in doc["starts"].items():
-        d = r["decisions"]
+        visits = r["rules"][EXPERIMENT_RULES[0]]["visits"]
         lines.append(
-            f"| {start} | {r['status']}, {r['simulated_s']:.0f} s simulated | {r['visits']} | "
-            f"{_right(r)} | {d['false_merge']} | {d['false_new']} | "
-            f"{_verdict(r)} |"
+            f"| {start} | {r['status']}, {r['simulated_s']:.0f} s simulated | {visits} | "
+            f"{_decisions(r)} |"
         )
-    correct = sum(1 for r in doc["starts"].values() if r["map_correct"])
-    lines += ["", f"Map correct from {correct} of {len(doc['starts'])} starts.", ""]
+    counts = ", ".join(
+        f"{sum(1 for r in doc['starts'].values() if r['rules'][rule]['map_correct'])} of "
+        f"{len(doc['starts'])} under {_RULE_HEADS[rule]}"
+        for rule in EXPERIMENT_RULES
+    )
+    lines += ["", f"Map correct from {counts}.", ""]
     return "\n".join(lines)
 
 

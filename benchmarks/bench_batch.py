@@ -1,0 +1,163 @@
+"""Throughput of ``pipemap batch``: 2 workers against the same runs one after another.
+
+    python benchmarks/bench_batch.py [--resolution PX] [--workers N] [--keep DIR]
+
+The SPEC has 12 runs, each its own recording (``paper`` and ``random:8``, seeds 0-2,
+``perfect`` and ``autonomous``, 64 px, pipemap's default rule). Two measurements, in
+one process, one after the other:
+
+1. sequential: the 12 runs one after another in this process, with the very call a
+   batch's worker makes (``pipemap.batch.run.run_recording``), no Ray;
+2. batch: ``pipemap batch SPEC --out DIR --workers 2`` as a user runs it, end to end
+   (Python's start-up, Ray's start-up on this machine, the runs, the table).
+
+The issue's target: (2) takes at most 0.6 x (1). Wall time is what a user waits;
+since the machine may be shared, the load average (``uptime``) is printed before
+and after each part, with the CPU seconds each part used: the runs' own CPU time
+(process and log writer) in both, so that a difference in wall time can be told
+from a difference in work.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SPEC = """\
+description = "bench_batch: 12 recordings, 2 networks x 3 seeds x 2 conditions"
+
+[grid]
+network = ["paper", "random:8"]
+seed = [0, 1, 2]
+condition = ["perfect", "autonomous"]
+resolution = [{resolution}]
+rule = ["default"]
+"""
+
+
+def _uptime() -> str:
+    with open("/proc/loadavg") as f:
+        one, five, fifteen = f.read().split()[:3]
+    return f"load average {one}, {five}, {fifteen}"
+
+
+def _cpu_children() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def _cpu_self() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def sequential(spec_path: Path) -> tuple[float, float, float]:
+    """Wall s, runs' CPU s (this process and its log writers) and the sum of each
+    run's own CPU figure, for the runs one after another."""
+    from pipemap.batch import load_spec
+    from pipemap.batch.run import run_recording
+
+    spec = load_spec(spec_path)
+    cpu0 = _cpu_self() + _cpu_children()
+    started = time.perf_counter()
+    task_cpu = 0.0
+    for k, point in enumerate(spec.points):
+        outcome = run_recording([point])
+        task_cpu += outcome["cpu_s"]
+        print(
+            f"  sequential {k + 1:2d}/{len(spec.points)} {point.run_id}: {outcome['wall_s']:.1f} s",
+            flush=True,
+        )
+    wall = time.perf_counter() - started
+    return wall, _cpu_self() + _cpu_children() - cpu0, task_cpu
+
+
+def batch(spec_path: Path, out: Path, workers: int) -> tuple[float, float, float]:
+    """Wall s of ``pipemap batch`` end to end, the CPU s of its process tree that
+    this process could account (a lower bound: Ray's workers are not its children),
+    and the sum of the runs' own CPU figures."""
+    cpu0 = _cpu_children()
+    started = time.perf_counter()
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pipemap",
+            "batch",
+            str(spec_path),
+            "--out",
+            str(out),
+            "--workers",
+            str(workers),
+        ],
+        capture_output=True,
+        text=True,
+    )
+    wall = time.perf_counter() - started
+    if done.returncode != 0:
+        sys.exit(f"pipemap batch failed ({done.returncode}):\n{done.stderr}")
+    rows = json.loads((out / "results.json").read_text())["runs"]
+    task_cpu = 0.0
+    for row in rows:
+        result = json.loads((out / "runs" / row["run_id"] / "result.json").read_text())
+        task_cpu += result["record"]["recording_cpu_s"]
+    return wall, _cpu_children() - cpu0, task_cpu
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--resolution", type=int, default=64)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--keep", type=Path, default=None, help="keep the batch folder here")
+    args = parser.parse_args()
+
+    tmp = Path(tempfile.mkdtemp(prefix="pipemap-bench-batch-"))
+    try:
+        spec_path = tmp / "bench12.toml"
+        spec_path.write_text(SPEC.format(resolution=args.resolution))
+        print(
+            f"# pipemap batch throughput: 12 runs at {args.resolution} px, {os.cpu_count()} cores"
+        )
+        print(f"before sequential: {_uptime()}", flush=True)
+        s_wall, s_cpu, s_task = sequential(spec_path)
+        print(f"after sequential:  {_uptime()}")
+        print(f"before batch:      {_uptime()}", flush=True)
+        out = tmp / "batch"
+        b_wall, b_cpu, b_task = batch(spec_path, out, args.workers)
+        print(f"after batch:       {_uptime()}")
+        with (out / "results.csv").open() as f:
+            rows = list(csv.DictReader(f))
+        ok = sum(1 for r in rows if r["status"] == "ok")
+        print()
+        print(
+            f"sequential, one process, no Ray : {s_wall:7.1f} s wall, "
+            f"{s_task:6.1f} s CPU in the runs ({s_cpu:.1f} s in this process and its children)"
+        )
+        print(
+            f"pipemap batch --workers {args.workers}        : {b_wall:7.1f} s wall, "
+            f"{b_task:6.1f} s CPU in the runs ({ok}/{len(rows)} runs ok; "
+            f">= {b_cpu:.1f} s CPU in its process tree)"
+        )
+        print(f"batch / sequential, wall time   : {b_wall / s_wall:.2f} (target: at most 0.60)")
+        print(
+            f"runs' CPU, batch / sequential   : {b_task / s_task:.2f} "
+            "(above 1: the runs did the same work slower, e.g. sharing cores)"
+        )
+        if args.keep is not None:
+            shutil.copytree(out, args.keep, dirs_exist_ok=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,424 @@
+"""Running a batch on Ray: this machine's cores, or an existing Ray cluster.
+
+:func:`plan_batch` checks everything a batch needs (the output folder, the cluster's
+address) without touching anything; :func:`run_batch` then runs the plan. Ray does
+the scheduling: one task per recording (:func:`batch.run.run_recording`), at most
+``workers`` at a time, each retried once by Ray when it raises or its worker dies,
+then recorded as failed with its reason while the batch goes on. The driver (this
+process) writes every finished run's folder as it arrives and rewrites the results
+table, so an interrupted batch keeps every finished run and ``--resume`` starts
+where it stopped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ipaddress
+import logging
+import os
+import re
+import shutil
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pipemap import __version__
+from pipemap.batch.results import (
+    RESULT_FILES,
+    read_result,
+    result_row,
+    write_failed,
+    write_run,
+    write_table,
+)
+from pipemap.batch.run import run_recording
+from pipemap.batch.spec import BatchSpec, RunPoint
+from pipemap.errors import InputError
+
+__all__ = [
+    "BatchEvent",
+    "BatchOptions",
+    "BatchPlan",
+    "BatchSummary",
+    "check_address",
+    "plan_batch",
+    "run_batch",
+]
+
+#: Files and folders of a batch that ``--force`` removes (nothing else in the folder).
+BATCH_ENTRIES = ("runs", "spec.toml", *RESULT_FILES)
+#: How long to wait for a cluster that answers on its port to accept this driver.
+CONNECT_TIMEOUT_S = 60.0
+#: How often the progress is refreshed while no run finishes.
+TICK_S = 1.0
+#: How often, at most, the results table is rewritten while runs finish (and at the end).
+TABLE_S = 2.0
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """How to run a batch: where, how wide, and what to do with an existing folder."""
+
+    address: str | None = None
+    workers: int | None = None
+    keep_logs: bool = False
+    resume: bool = False
+    force: bool = False
+    #: Other files of the folder that ``force`` removes (a preset's own reports).
+    extra_entries: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class BatchPlan:
+    """A checked batch: the SPEC, the folder, and the runs already complete there."""
+
+    spec: BatchSpec
+    out: Path
+    options: BatchOptions
+    complete: frozenset[str] = frozenset()
+
+    @property
+    def pending(self) -> tuple[RunPoint, ...]:
+        """The runs still to make, in grid order."""
+        return tuple(p for p in self.spec.points if p.run_id not in self.complete)
+
+
+@dataclass(frozen=True)
+class BatchEvent:
+    """Something happened: a run finished (``ok``/``failed``), or time passed (``tick``)."""
+
+    kind: str
+    point: RunPoint | None
+    doc: Mapping[str, Any] | None
+    done: int
+    total: int
+    failed: int
+    running: int
+    elapsed_s: float
+
+    @property
+    def eta_s(self) -> float | None:
+        """Time left at the pace so far (``None`` until a run of this session finished)."""
+        return None if self.done <= 0 else self.elapsed_s / self.done * (self.total - self.done)
+
+
+@dataclass
+class BatchSummary:
+    """How a batch went."""
+
+    total: int
+    skipped: int
+    done: int = 0
+    failed: int = 0
+    interrupted: bool = False
+    workers: int = 0
+    wall_s: float = 0.0
+    #: CPU seconds the finished recordings took on their workers.
+    cpu_s: float = 0.0
+    rows: list[dict[str, Any]] = field(default_factory=list)
+
+
+# ------------------------------------------------------------------- checking
+
+
+def _parse_address(address: str) -> tuple[str, int]:
+    m = re.fullmatch(r"\[?([^\[\]]+?)\]?:(\d{1,5})", address.strip())
+    if m is None or not 0 < int(m.group(2)) < 65536:
+        raise InputError(
+            f"--address {address}: expected HOST:PORT, the address `ray start --head` "
+            "prints (e.g. 127.0.0.1:6379)"
+        )
+    return m.group(1), int(m.group(2))
+
+
+def check_address(address: str, timeout_s: float = 5.0) -> tuple[str, int]:
+    """``HOST:PORT`` of a Ray head that answers, or :class:`InputError`."""
+    host, port = _parse_address(address)
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            pass
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise InputError(
+            f"--address {address}: no Ray head answers there ({reason.lower()}); "
+            "start one with `ray start --head`"
+        ) from None
+    return host, port
+
+
+def _check_out(out: Path, resume: bool, force: bool) -> None:
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: is a file, not a folder")
+    if not out.parent.is_dir():
+        raise InputError(f"--out {out}: folder {out.parent} does not exist")
+    if out.is_dir() and any(out.iterdir()) and not (resume or force):
+        raise InputError(
+            f"--out {out}: exists; refusing to touch it without --resume (keep its "
+            "finished runs) or --force (start afresh)"
+        )
+
+
+def plan_batch(spec: BatchSpec, out: Path, options: BatchOptions) -> BatchPlan:
+    """Check the output folder and the cluster's address; nothing is written."""
+    if options.resume and options.force:
+        raise InputError("--resume and --force: choose one")
+    if options.workers is not None and options.workers < 1:
+        raise InputError(f"--workers {options.workers}: must be at least 1")
+    _check_out(out, options.resume, options.force)
+    if options.address is not None:
+        check_address(options.address)
+    complete: set[str] = set()
+    if options.resume and out.is_dir():
+        for point in spec.points:
+            doc = read_result(out, point.run_id)
+            if doc is not None and doc["status"] == "ok":
+                complete.add(point.run_id)
+    return BatchPlan(spec, out, options, frozenset(complete))
+
+
+# ------------------------------------------------------------------------ Ray
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _quiet_ray(address: str | None) -> None:
+    """Environment for Ray, set before it is imported (a user's own settings win)."""
+    # No usage statistics sent anywhere.
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    if address is None or _is_loopback(_parse_address(address)[0]):
+        # A cluster on this machine only: keep Ray on the loopback address (as Ray
+        # does on macOS and Windows) rather than the machine's network address, so
+        # that nothing listens beyond this machine and a head started with
+        # `--node-ip-address 127.0.0.1` finds this driver on the same node.
+        os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+
+
+def _connect(address: str) -> None:
+    import ray
+
+    failure: list[BaseException] = []
+
+    def connect() -> None:
+        try:
+            ray.init(
+                address=address.strip(),
+                log_to_driver=False,
+                logging_level=logging.ERROR,
+            )
+        except BaseException as exc:  # reported by the caller, in one line
+            failure.append(exc)
+
+    thread = threading.Thread(target=connect, daemon=True)
+    thread.start()
+    thread.join(CONNECT_TIMEOUT_S)
+    if thread.is_alive():
+        raise InputError(
+            f"--address {address}: a server answers but no Ray cluster took this driver "
+            f"within {CONNECT_TIMEOUT_S:.0f} s (is it a Ray head of the same version?)"
+        )
+    if failure:
+        exc = failure[0]
+        text = str(exc).strip().splitlines()
+        detail = text[0] if text else type(exc).__name__
+        if "auth" in type(exc).__name__.lower() or "token" in str(exc).lower():
+            detail = (
+                "the cluster asks for its token: set RAY_AUTH_MODE=token (and "
+                "RAY_AUTH_TOKEN_PATH if the token is not in ~/.ray/auth_token)"
+            )
+        raise InputError(f"--address {address}: cannot join the Ray cluster: {detail}")
+
+
+def _cluster_cpus() -> int:
+    import ray
+
+    resources = ray.cluster_resources()  # type: ignore[no-untyped-call]
+    return max(1, int(resources.get("CPU", 1)))
+
+
+@contextlib.contextmanager
+def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
+    """Ray started on this machine (``address`` ``None``) or joined at ``address``,
+    shut down (or left) at the end; yields how many runs may go at once. An already
+    initialised Ray (a test's) is used as it is and left running."""
+    _quiet_ray(address)
+    import ray
+
+    if ray.is_initialized():
+        yield workers or _cluster_cpus()
+        return
+    if address is None:
+        cpus = workers or os.cpu_count() or 1
+        ray.init(
+            address="local",
+            num_cpus=cpus,
+            include_dashboard=False,
+            log_to_driver=False,
+            logging_level=logging.ERROR,
+            # Results come back as soon as they are done; logs are tens of MB at most.
+            object_store_memory=512 * 1024 * 1024,
+        )
+    else:
+        _connect(address)
+        cpus = workers or _cluster_cpus()
+    try:
+        yield cpus
+    finally:
+        ray.shutdown()
+
+
+def _reason(exc: BaseException) -> str:
+    """One line saying why a task failed, from what Ray raised."""
+    import ray.exceptions
+
+    deaths = tuple(
+        getattr(ray.exceptions, name)
+        for name in ("WorkerCrashedError", "NodeDiedError", "LocalRayletDiedError")
+        if hasattr(ray.exceptions, name)
+    )
+    cause = exc
+    if isinstance(exc, ray.exceptions.RayTaskError):
+        inner = getattr(exc, "cause", None)
+        if isinstance(inner, BaseException):
+            cause = inner
+    elif isinstance(exc, deaths):
+        return "its worker died (twice: retried once)"
+    lines = [line for line in str(cause).strip().splitlines() if line.strip()]
+    text = lines[-1].strip() if lines else ""
+    name = type(cause).__name__
+    return f"{name}: {text}" if text else name
+
+
+# ----------------------------------------------------------------------- running
+
+#: The task: the runs of one recording -> their outcome (see batch.run).
+Task = Callable[..., Mapping[str, Any]]
+
+
+def _prepare_folder(plan: BatchPlan) -> None:
+    out = plan.out
+    if plan.options.force and out.is_dir():
+        for name in (*BATCH_ENTRIES, *plan.options.extra_entries):
+            entry = out / name
+            if entry.is_dir():
+                shutil.rmtree(entry)
+            elif entry.exists():
+                entry.unlink()
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    (out / "spec.toml").write_text(plan.spec.text)
+
+
+def _recordings(points: tuple[RunPoint, ...]) -> list[tuple[RunPoint, ...]]:
+    groups: dict[tuple[Any, ...], list[RunPoint]] = {}
+    for p in points:
+        groups.setdefault(p.recording_key, []).append(p)
+    return [tuple(g) for g in groups.values()]
+
+
+def run_batch(
+    plan: BatchPlan,
+    progress: Callable[[BatchEvent], None] | None = None,
+    task: Task = run_recording,
+) -> BatchSummary:
+    """Run every pending run of ``plan`` on Ray and write its folder and the table.
+
+    Ctrl-C stops the batch: running tasks are cancelled, every finished run stays,
+    and the summary says ``interrupted``.
+    """
+    _quiet_ray(plan.options.address)  # before Ray is imported: it reads them then
+    import ray
+
+    spec, out = plan.spec, plan.out
+    pending = plan.pending
+    summary = BatchSummary(total=len(spec.points), skipped=len(plan.complete))
+    started = time.perf_counter()
+    rows: dict[str, dict[str, Any]] = {}
+    for run_id in plan.complete:
+        doc = read_result(out, run_id)
+        if doc is not None:
+            rows[run_id] = result_row(out, doc)
+    _prepare_folder(plan)
+    written = [0.0]
+
+    def table(now: bool = False) -> list[dict[str, Any]]:
+        """Rewrite the table, at most every TABLE_S unless ``now``."""
+        if now or time.perf_counter() - written[0] >= TABLE_S:
+            written[0] = time.perf_counter()
+            return write_table(out, spec, rows.values(), __version__)
+        return []
+
+    def event(kind: str, point: RunPoint | None, doc: Mapping[str, Any] | None) -> None:
+        if progress is not None:
+            progress(
+                BatchEvent(
+                    kind,
+                    point,
+                    doc,
+                    summary.done,
+                    len(pending),
+                    summary.failed,
+                    len(running),
+                    time.perf_counter() - started,
+                )
+            )
+
+    def finished(points: tuple[RunPoint, ...], outcome: Mapping[str, Any] | None, why: str) -> None:
+        for point in points:
+            if outcome is not None:
+                doc = write_run(out, point, outcome, plan.options.keep_logs)
+            else:
+                doc = write_failed(out, point, why)
+                summary.failed += 1
+            rows[point.run_id] = result_row(out, doc)
+            summary.done += 1
+            event(doc["status"], point, doc)
+        if outcome is not None:
+            summary.cpu_s += float(outcome.get("cpu_s", 0.0))
+        table()
+
+    queue = _recordings(pending)
+    running: dict[Any, tuple[RunPoint, ...]] = {}
+    if not queue:  # nothing to make: no need for Ray
+        summary.rows = table(now=True)
+        return summary
+    with ray_session(plan.options.address, plan.options.workers) as workers:
+        summary.workers = workers
+        remote = ray.remote(num_cpus=1, max_retries=1, retry_exceptions=True)(task)
+        keep = plan.options.keep_logs
+        table(now=True)
+        event("start", None, None)
+        try:
+            while queue or running:
+                while queue and len(running) < workers:
+                    points = queue.pop(0)
+                    running[remote.remote(points, keep)] = points  # type: ignore[call-arg]
+                ready, _ = ray.wait(list(running), num_returns=1, timeout=TICK_S)
+                if not ready:
+                    event("tick", None, None)
+                    continue
+                for ref in ready:
+                    points = running.pop(ref)
+                    try:
+                        outcome = ray.get(ref)
+                    except Exception as exc:  # a RayTaskError, a dead worker: recorded
+                        finished(points, None, _reason(exc))
+                    else:
+                        finished(points, outcome, "")
+        except KeyboardInterrupt:
+            summary.interrupted = True
+            for ref in running:
+                with contextlib.suppress(Exception):
+                    ray.cancel(ref, force=True)
+    summary.rows = table(now=True)
+    summary.wall_s = time.perf_counter() - started
+    return summary

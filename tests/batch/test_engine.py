@@ -1,0 +1,149 @@
+"""The batch engine on a real Ray started once for this module, with stand-in tasks:
+a run that fails once is retried and kept, a run that always fails or whose worker
+dies is recorded as failed with its reason, and the batch goes on."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pipemap.batch import BatchOptions, parse_spec, plan_batch, run_batch
+from pipemap.batch.engine import _quiet_ray
+from pipemap.batch.spec import RunPoint
+
+SPEC = """
+[grid]
+network = ["paper"]
+seed = [0, 1, 2, 3]
+resolution = [32]
+rule = ["default", "paper"]
+"""
+#: What a stand-in run does, by seed: 0 succeeds, 1 fails once, 2 always fails,
+#: 3 kills its worker.
+FLAKY, FAILING, DYING = 1, 2, 3
+
+
+@pytest.fixture(scope="module")
+def ray_here() -> Iterator[None]:
+    """Ray on this machine, once for the module (the engine uses it as it is)."""
+    _quiet_ray(None)
+    import ray
+
+    ray.init(
+        address="local",
+        num_cpus=2,
+        include_dashboard=False,
+        log_to_driver=False,
+        object_store_memory=128 * 1024 * 1024,
+    )
+    yield
+    ray.shutdown()
+
+
+def _score(points: Sequence[RunPoint]) -> dict[str, Any]:
+    score = {
+        "log": "run.mcap",
+        "map_correct": True,
+        "visits": 2,
+        "decisions": {"correct_known": 0, "correct_new": 2, "false_merge": 0, "false_new": 0},
+    }
+    return {
+        p.run_id: {
+            "score_json": json.dumps(score),
+            "visits_csv": "visit\n",
+            "pairs": {"same": [], "different": [0.1], "rotation_error_rad": []},
+            "known_rotation_errors_rad": [],
+            "score_wall_s": 0.0,
+        }
+        for p in points
+    }
+
+
+#: A folder counting attempts; set by the test before the function is sent to Ray's
+#: workers, which get it with the function (pickled by value).
+MARKS = ""
+
+
+def stand_in(points: Sequence[RunPoint], keep_log: bool) -> dict[str, Any]:
+    """A run by seed (see above)."""
+    marks = MARKS
+    seed = points[0].seed
+    attempt = Path(marks) / f"seed{seed}-{os.getpid()}-{len(list(Path(marks).iterdir()))}"
+    attempt.touch()
+    tries = len(list(Path(marks).glob(f"seed{seed}-*")))
+    if seed == FLAKY and tries == 1:
+        raise RuntimeError("flaky: first attempt fails")
+    if seed == FAILING:
+        raise ValueError(f"broken run, attempt {tries}")
+    if seed == DYING:
+        os._exit(3)
+    return {
+        "record": {
+            "run_status": "complete",
+            "run_ok": True,
+            "sweeps": 2,
+            "simulated_s": 1.0,
+            "record_wall_s": 0.0,
+        },
+        "runs": _score(points),
+        "log": b"log" if keep_log else None,
+        "wall_s": 0.0,
+        "cpu_s": 0.5,
+        "worker": f"test:{os.getpid()}",
+        "pipemap_version": "test",
+    }
+
+
+def test_failures_are_retried_once_then_recorded(ray_here: None, tmp_path: Path) -> None:
+    global MARKS
+    from ray import cloudpickle
+
+    cloudpickle.register_pickle_by_value(__import__(__name__))  # workers cannot import tests
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    MARKS = str(marks)
+    spec = parse_spec(SPEC, "engine.toml")
+    out = tmp_path / "out"
+    plan = plan_batch(spec, out, BatchOptions(keep_logs=True))
+    events: list[Any] = []
+    task = stand_in
+    summary = run_batch(plan, events.append, task=task)
+
+    assert summary.total == 8 and summary.done == 8 and summary.failed == 4
+    assert not summary.interrupted
+    with (out / "results.csv").open() as f:
+        rows = {int(r["seed"]): r for r in csv.DictReader(f) if r["rule"] == "paper"}
+    assert rows[0]["status"] == "ok" and rows[0]["map_correct"] == "true"
+    assert rows[FLAKY]["status"] == "ok"  # failed once, retried by Ray, kept
+    assert len(list(marks.glob("seed1-*"))) == 2
+    assert rows[FAILING]["status"] == "failed"
+    assert rows[FAILING]["reason"] == "ValueError: broken run, attempt 2"  # after one retry
+    assert len(list(marks.glob("seed2-*"))) == 2
+    assert rows[DYING]["status"] == "failed" and "worker died" in rows[DYING]["reason"]
+    assert rows[DYING]["map_correct"] == ""
+    # Each run's folder: whole, the log kept for the runs that made one.
+    assert (out / "runs" / rows[0]["run_id"] / "run.mcap").read_bytes() == b"log"
+    failed = json.loads((out / "runs" / rows[FAILING]["run_id"] / "result.json").read_text())
+    assert failed["status"] == "failed" and failed["commands"]["record"].startswith("pipemap")
+    kinds = [e.kind for e in events if e.kind in ("ok", "failed")]
+    assert sorted(kinds) == ["failed"] * 4 + ["ok"] * 4
+    done = [e.done for e in events if e.kind in ("ok", "failed")]
+    assert done == list(range(1, 9))
+    assert events[-1].eta_s == 0.0
+
+    # --resume makes the failed runs again, and keeps the complete ones.
+    for path in marks.iterdir():
+        path.unlink()
+    plan = plan_batch(spec, out, BatchOptions(resume=True))
+    assert len(plan.complete) == 4 and {p.seed for p in plan.pending} == {FAILING, DYING}
+    summary = run_batch(plan, None, task=task)
+    assert summary.skipped == 4 and summary.done == 4 and summary.failed == 4
+    assert {p.name.split("-")[0] for p in marks.iterdir()} == {"seed2", "seed3"}
+    table = json.loads((out / "results.json").read_text())
+    assert table["runs_finished"] == 8 and table["runs_failed"] == 4
