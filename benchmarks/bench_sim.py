@@ -7,7 +7,12 @@ complete ``paper`` tour in the ``perfect`` condition at 400x400 (13 sweeps of 6
 images), and a full autonomous ``paper`` exploration at 400x400 from S with its
 real-time factor (simulated seconds per wall second).
 
-Usage: ``python benchmarks/bench_sim.py``.
+Usage: ``python benchmarks/bench_sim.py [--network NAME] [--resolution PX] [--no-run]``.
+With ``--network`` (``grid:10x10``, ``random:100``, ...) it measures that network
+instead: world build time and the memory it adds (resident set), render time per
+image at the first 12 nodes' centres, and (unless ``--no-run``) an autonomous run
+at ``--resolution`` with its real-time factor. CPU time (``time.process_time``) is
+printed beside wall time.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
+import argparse  # noqa: E402
 import math  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
@@ -32,7 +38,64 @@ from pipemap.sim import CameraSpec, Condition, Episode, SimConfig, World, build_
 from pipemap.sim.controller import autonomous_run  # noqa: E402
 
 
+def _rss_mib() -> float:
+    """Resident memory of this process (Linux ``/proc``), MiB."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def network_benchmark(name: str, resolution: int, run: bool) -> None:
+    """World build, its memory, render per image and an autonomous run of ``name``."""
+    network = build_network(name, seed=0)
+    junctions = sum(1 for n in network.nodes if network.degree(n.label) >= 3)
+    print(
+        f"# {name}: {len(network.nodes)} nodes ({junctions} junctions), "
+        f"{len(network.pipes)} pipes, one core"
+    )
+    rss = _rss_mib()
+    wall, cpu = time.perf_counter(), time.process_time()
+    world = World(network, seed=0)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    print(
+        f"world build: {wall:.2f} s wall, {cpu:.2f} s CPU, {world.triangle_count} triangles, "
+        f"+{_rss_mib() - rss:.0f} MiB resident"
+    )
+    camera = CameraSpec(resolution_px=resolution)
+    walls, cpus = [], []
+    for node in network.nodes[:12]:
+        wall, cpu = time.perf_counter(), time.process_time()
+        world.render((node.x_m + 1e-4, node.y_m + 1e-4, 0.05), 0.0, camera)
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+    print(
+        f"render per image at {resolution}x{resolution}: {statistics.median(walls) * 1000:.0f} ms "
+        f"wall, {statistics.median(cpus) * 1000:.0f} ms CPU (median of {len(walls)})"
+    )
+    if run:
+        wall, cpu = time.perf_counter(), time.process_time()
+        result = autonomous_run(world, camera, seed=0)
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        simulated = result.duration_ns / 1e9
+        print(
+            f"autonomous run at {resolution}x{resolution}: {result.status.value}, "
+            f"{len(result.sweeps)} sweeps, {result.distance_m:.1f} m, {simulated:.0f} s simulated "
+            f"in {wall:.1f} s wall ({simulated / wall:.1f}x real time), {cpu:.1f} s CPU "
+            f"({simulated / cpu:.1f}x)"
+        )
+    world.close()
+
+
 def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--network", default=None, help="measure this network instead")
+    parser.add_argument("--resolution", type=int, default=400, help="image size (400)")
+    parser.add_argument("--no-run", action="store_true", help="skip the autonomous run")
+    args = parser.parse_args()
+    if args.network is not None:
+        network_benchmark(args.network, args.resolution, not args.no_run)
+        return 0
     network = build_network("paper")
     start = time.perf_counter()
     world = World(network, seed=0)

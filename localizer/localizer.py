@@ -122,7 +122,9 @@ class LocalizerConfig:
     #: inliers, and new if none does. The threshold then only calls for probes (and
     #: decides sweeps with too few keypoints to check). Not in
     #: the paper: over 61 logs, same-junction pairs fit with 179 inliers or more at
-    #: 400 px (59 at 96 px), different ones with 13 at most (37 at 96 px).
+    #: 400 px (59 at 96 px), different ones with 13 at most (37 at 96 px), measured
+    #: with every image pair matched (before ``TwoViewConfig.overlap_only``, which
+    #: raises the counts of both; not re-measured over those logs).
     verify: bool = True
     verify_inliers: int = 48
     verify_candidates: int = 4

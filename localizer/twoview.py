@@ -35,7 +35,8 @@ On those sets it takes the rotation error across entries from 0.077 rad on avera
 
 The inlier count is also a check that both sweeps show the same place: matched
 keypoints of two different junctions do not fit one motion. Keypoints are ORB's
-(OpenCV), matched by Hamming distance with Lowe's ratio test.
+(OpenCV), matched by Hamming distance with Lowe's ratio test; given a rotation
+guess, each image only with the images of the other sweep that can overlap it.
 """
 
 from __future__ import annotations
