@@ -277,6 +277,12 @@ def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
         ray.shutdown()
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """Whether a task failed because Ctrl-C reached its worker."""
+    cause = getattr(exc, "cause", None)
+    return isinstance(cause, KeyboardInterrupt) or "KeyboardInterrupt" in str(exc)
+
+
 def _reason(exc: BaseException) -> str:
     """One line saying why a task failed, from what Ray raised."""
     import ray.exceptions
@@ -318,11 +324,21 @@ def _prepare_folder(plan: BatchPlan) -> None:
     (out / "spec.toml").write_text(plan.spec.text)
 
 
+def _cost(points: tuple[RunPoint, ...]) -> float:
+    """A rough guess of a recording's work, to hand out the long ones first (so that
+    the batch does not end waiting on one long run): the autonomous robot drives
+    between junctions; every run renders its sweeps."""
+    p = points[0]
+    drive = 3.0 if p.condition == "autonomous" else 1.0
+    return drive + p.images * (p.resolution / 400.0) ** 2 + 0.5 * len(points)
+
+
 def _recordings(points: tuple[RunPoint, ...]) -> list[tuple[RunPoint, ...]]:
+    """The runs grouped by recording, the costliest first (ties in grid order)."""
     groups: dict[tuple[Any, ...], list[RunPoint]] = {}
     for p in points:
         groups.setdefault(p.recording_key, []).append(p)
-    return [tuple(g) for g in groups.values()]
+    return sorted((tuple(g) for g in groups.values()), key=_cost, reverse=True)
 
 
 def run_batch(
@@ -411,14 +427,16 @@ def run_batch(
                     try:
                         outcome = ray.get(ref)
                     except Exception as exc:  # a RayTaskError, a dead worker: recorded
+                        if _interrupted(exc):  # Ctrl-C reached the worker too: not run
+                            raise KeyboardInterrupt from exc
                         finished(points, None, _reason(exc))
                     else:
                         finished(points, outcome, "")
         except KeyboardInterrupt:
+            # Not ray.cancel: cancelling a task as it completes can abort this process
+            # (a Ray core check, seen with Ray 2.60). Shutting down ends the running
+            # tasks (a cluster ends a driver's tasks when the driver leaves).
             summary.interrupted = True
-            for ref in running:
-                with contextlib.suppress(Exception):
-                    ray.cancel(ref, force=True)
     summary.rows = table(now=True)
     summary.wall_s = time.perf_counter() - started
     return summary

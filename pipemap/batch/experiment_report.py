@@ -124,8 +124,9 @@ def _verdict(doc: dict[str, Any]) -> str:
     return "correct" if doc["map_correct"] else "WRONG"
 
 
-#: Column heads of a rule, as the tables name it.
+#: Column heads of a rule, as the tables name it, and as a sentence does.
 _RULE_HEADS = {"paper": "paper's rule", "default": "pipemap's defaults"}
+_RULE_PHRASES = {"paper": "the paper's rule", "default": "pipemap's defaults"}
 
 
 def _rule_line(rule: str) -> str:
@@ -297,7 +298,7 @@ def _markdown(doc: dict[str, Any]) -> str:
         )
     counts = ", ".join(
         f"{sum(1 for r in doc['starts'].values() if r['rules'][rule]['map_correct'])} of "
-        f"{len(doc['starts'])} under {_RULE_HEADS[rule]}"
+        f"{len(doc['starts'])} under {_RULE_PHRASES[rule]}"
         for rule in EXPERIMENT_RULES
     )
     lines += ["", f"Map correct from {counts}.", ""]

@@ -150,15 +150,16 @@ def _markdown(doc: Mapping[str, Any]) -> str:
         "",
         *([doc["description"], ""] if doc["description"] else []),
         f"pipemap {doc['pipemap_version']}: {doc['runs_finished']} of {doc['runs_total']} runs "
-        f"finished, {doc['runs_failed']} failed. Rebuild with `pipemap batch {doc['spec']} "
-        "--out DIR`, then `pipemap batch-report DIR`.",
+        f"finished, {doc['runs_failed']} failed. The SPEC is `spec.toml` beside this report "
+        f"(run as `{doc['spec']}`): `pipemap batch spec.toml --out DIR` rebuilds the runs, "
+        "`pipemap batch-report DIR` this report.",
         "",
         "Decision rules (each run was replayed and scored as `pipemap score` with these flags):",
         "",
     ]
     for name, flags in doc["rules"].items():
-        flag_text = " ".join(flags) if flags else "no flags"
-        lines.append(f"- `{name}` (`pipemap score` {flag_text}): {RULES[name].description}")
+        command = f"`{RULES[name].command()}`" + ("" if flags else " (no flags)")
+        lines.append(f"- `{name}` ({command}): {RULES[name].description}")
     lines += [
         "",
         f"Grouped by {', '.join(by) if by else 'nothing (one group)'}; each group's numbers "

@@ -264,7 +264,8 @@ def test_batch_report_writes_grouped_tables_and_figures(local: tuple[Path, str, 
     assert done.returncode == 0, done.stderr
     text = (out / "report.md").read_text()
     assert "| network | rule | runs | failed | map correct |" in text
-    assert "`pipemap score` --no-two-view --allow-repeat" in text
+    assert "`pipemap score --no-two-view --allow-repeat`" in text
+    assert "`pipemap score` (no flags)" in text
     doc = json.loads((out / "report.json").read_text())
     assert doc["by"] == ["network", "rule"] and len(doc["groups"]) == 4
     group = doc["groups"][0]
