@@ -69,18 +69,17 @@ def output_file(path: str | None, flag: str, force: bool) -> Path | None:
 def output_folder(
     path: str, flag: str, force: bool, earlier: Callable[[Path], list[str]] | None = None
 ) -> Path:
-    """``path`` (given as ``flag``) as a folder this command may fill (made later, with
-    its parents, if it does not exist). ``earlier`` lists what of a folder's content
-    the command would replace (default: anything in it); that needs ``force``."""
+    """``path`` (given as ``flag``) as a folder this command may fill (made later if it
+    does not exist; its parent must, as a file's folder must). ``earlier`` lists what
+    of a folder's content the command would replace (default: anything in it); that
+    needs ``force``."""
     folder = Path(path)
     where = f"{flag} {folder}"
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{where}: is a file, not a folder")
-    existing = folder
-    while not existing.exists():
-        existing = existing.parent
+    existing = folder if folder.is_dir() else folder.parent
     if not existing.is_dir():
-        raise InputError(f"{where}: {existing} is a file, not a folder")
+        raise InputError(f"{where}: folder {existing} does not exist")
     if folder.is_dir():
         found = earlier(folder) if earlier is not None else sorted(p.name for p in folder.iterdir())
         if found and not force:
