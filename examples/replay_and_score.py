@@ -39,7 +39,8 @@ def main(path: Path) -> None:
     document = result.document()
     print(f"map: {len(document['nodes'])} junctions, {len(document['edges'])} pipes")
 
-    # Scored against the simulator's truth, with pipemap's defaults and the paper's rule.
+    # Scored against the simulator's truth, with pipemap's defaults and the paper's rule
+    # (on a small 96 px log the paper's threshold alone merges look-alike junctions).
     for name, config in (("defaults", None), ("paper's rule", PAPER)):
         report = api.score(log, config)
         verdict = "correct" if report.map_correct else "wrong"

@@ -122,7 +122,7 @@ class LiveView:
                 robot.append(m)
         log_robot(self.rec, by_topic, self._geometry)
         log_truth(self.rec, by_topic, self._trail)
-        sweeps, _ = sweeps_of(robot, "live run")
+        sweeps = sweeps_of(robot, "live run").sweeps
         for sweep in sweeps:
             self._sweeps += 1
             self._images += sweep.images.count

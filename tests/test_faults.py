@@ -263,6 +263,12 @@ OUTPUTS = {
         str(d / "s"),
     ],
     "experiment --out": lambda log, d: ["experiment", "paper", "--out", str(d / "exp")],
+    "batch --out": lambda log, d: [
+        "batch",
+        str(Path(__file__).resolve().parents[1] / "experiments" / "small.toml"),
+        "--out",
+        str(d / "batch"),
+    ],
 }
 
 

@@ -14,6 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+from pipemap.cli.outputs import output_folder
+
 __all__ = ["format_duration", "progress_printer", "run_batch_command", "run_batch_report"]
 
 
@@ -92,6 +94,8 @@ def run_batch_command(args: argparse.Namespace, out: TextIO, err: TextIO = sys.s
         resume=args.resume,
         force=args.force,
     )
+    # Writable before any work (the batch's own check then decides --resume/--force).
+    output_folder(args.out, "--out", force=True)
     plan = plan_batch(spec, Path(args.out), options)
     err.write(_describe(plan, args.address))
     err.flush()

@@ -9,6 +9,8 @@ import time
 from pathlib import Path
 from typing import TextIO
 
+from pipemap.cli.outputs import output_folder
+
 __all__ = ["run_experiment"]
 
 
@@ -36,6 +38,8 @@ def run_experiment(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stde
         force=args.force,
         extra_entries=FILES,
     )
+    # Writable before any work (the batch's own check then decides --resume/--force).
+    output_folder(args.out, "--out", force=True)
     plan = plan_batch(spec, folder, options)
     err.write(
         f"experiment paper: {len(plan.pending)} runs to make ({spec.recordings()} recordings, "
