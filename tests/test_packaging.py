@@ -43,7 +43,13 @@ def test_the_wheel_installs_one_top_level_name(wheel: Path) -> None:
     tops = {name.split("/")[0] for name in names if not name.split("/")[0].endswith(".dist-info")}
     assert tops == {"pipemap"}
     assert top_level.split() == ["pipemap"]
-    for module in ("sim/world.py", "localizer/fastmatch.py", "replay/score.py", "cli/app.py"):
+    for module in (
+        "sim/world.py",
+        "localizer/fastmatch.py",
+        "replay/score.py",
+        "cli/app.py",
+        "batch/engine.py",
+    ):
         assert f"pipemap/{module}" in names
     assert "pipemap/recorder/schemas/pipemap_log.proto" in names
 
@@ -59,7 +65,8 @@ def test_installed_layers_import_under_pipemap_only(wheel: Path, tmp_path: Path)
     env = {**os.environ, "PYTHONPATH": str(target)}
     probe = (
         "import pipemap.sim, pipemap.localizer, pipemap.replay, pipemap.recorder, pipemap.cli\n"
-        "for m in (pipemap.sim, pipemap.localizer, pipemap.replay, pipemap.cli):\n"
+        "import pipemap.batch\n"
+        "for m in (pipemap.sim, pipemap.localizer, pipemap.replay, pipemap.cli, pipemap.batch):\n"
         "    print(m.__file__)\n"
     )
     # Run outside the repository, so that its folders cannot be found through the cwd.

@@ -391,7 +391,9 @@ def run_batch(
     def finished(points: tuple[RunPoint, ...], outcome: Mapping[str, Any] | None, why: str) -> None:
         for point in points:
             if outcome is not None:
-                doc = write_run(out, point, outcome, plan.options.keep_logs)
+                # The runs of one recording share its log: written once, then linked.
+                first = points[0].run_id if point is not points[0] else None
+                doc = write_run(out, point, outcome, plan.options.keep_logs, first)
             else:
                 doc = write_failed(out, point, why)
                 summary.failed += 1

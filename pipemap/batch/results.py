@@ -119,8 +119,9 @@ def _run_folder(out: Path, run_id: str) -> Path:
     return out / "runs" / run_id
 
 
-def _replace_folder(out: Path, run_id: str, files: Mapping[str, str | bytes]) -> None:
-    """Write ``files`` into ``runs/<run_id>/``, whole or not at all."""
+def _replace_folder(out: Path, run_id: str, files: Mapping[str, str | bytes | Path]) -> None:
+    """Write ``files`` into ``runs/<run_id>/``, whole or not at all (a ``Path`` is a
+    file to link, or copy where links cannot be made)."""
     final = _run_folder(out, run_id)
     partial = final.with_name(f".{run_id}.partial")
     if partial.exists():
@@ -128,7 +129,12 @@ def _replace_folder(out: Path, run_id: str, files: Mapping[str, str | bytes]) ->
     partial.mkdir(parents=True)
     for name, content in files.items():
         target = partial / name
-        if isinstance(content, bytes):
+        if isinstance(content, Path):
+            try:
+                os.link(content, target)
+            except OSError:
+                shutil.copyfile(content, target)
+        elif isinstance(content, bytes):
             target.write_bytes(content)
         else:
             target.write_text(content)
@@ -148,10 +154,15 @@ def _base(point: RunPoint) -> dict[str, Any]:
 
 
 def write_run(
-    out: Path, point: RunPoint, outcome: Mapping[str, Any], keep_log: bool
+    out: Path,
+    point: RunPoint,
+    outcome: Mapping[str, Any],
+    keep_log: bool,
+    log_of: str | None = None,
 ) -> dict[str, Any]:
     """Write a scored run (``outcome`` as :func:`batch.run.run_recording` returns
-    it); returns its ``result.json`` document."""
+    it); returns its ``result.json`` document. ``log_of`` names a run of the same
+    recording whose folder already holds the log: it is linked, not written again."""
     run = outcome["runs"][point.run_id]
     score = json.loads(run["score_json"])
     doc = {
@@ -166,13 +177,14 @@ def write_run(
         "pairs": run["pairs"],
         "known_rotation_errors_rad": run["known_rotation_errors_rad"],
     }
-    files: dict[str, str | bytes] = {
+    files: dict[str, str | bytes | Path] = {
         "result.json": json.dumps(doc, indent=2, allow_nan=False) + "\n",
         "score.json": run["score_json"],
         "visits.csv": run["visits_csv"],
     }
     if keep_log and outcome.get("log") is not None:
-        files[LOG_NAME] = outcome["log"]
+        shared = None if log_of is None else _run_folder(out, log_of) / LOG_NAME
+        files[LOG_NAME] = shared if shared is not None and shared.is_file() else outcome["log"]
     _replace_folder(out, point.run_id, files)
     return doc
 
