@@ -2,9 +2,10 @@
 
 :func:`plan_batch` checks everything a batch needs (the output folder, the cluster's
 address) without touching anything; :func:`run_batch` then runs the plan. Ray does
-the scheduling: one task per recording (:func:`batch.run.run_recording`), at most
-``workers`` at a time, each retried once by Ray when it raises or its worker dies,
-then recorded as failed with its reason while the batch goes on. The driver (this
+the scheduling: one task per recording (:func:`batch.run.run_recording`), handed to
+Ray the costliest first, at most ``workers`` at a time, each retried once by Ray
+when it raises or its worker dies, then recorded as failed with its reason while the
+batch goes on. The driver (this
 process) writes every finished run's folder as it arrives and rewrites the results
 table, so an interrupted batch keeps every finished run and ``--resume`` starts
 where it stopped.
