@@ -20,6 +20,7 @@ from pipemap.sim.stream import (
     ControlStep,
     NodeArrival,
     NodeDeparture,
+    NodeExits,
     Note,
     SimRecord,
     SweepImage,
@@ -148,6 +149,20 @@ class RecordConverter:
                 t,
                 schemas.NodeEvent(
                     time_ns=t, kind=schemas.NodeEvent.ARRIVAL, visit_id=record.visit_id
+                ),
+            )
+        elif isinstance(record, NodeExits):
+            w.write(
+                Topic.NODE,
+                t,
+                schemas.NodeEvent(
+                    time_ns=t,
+                    kind=schemas.NodeEvent.EXITS,
+                    visit_id=record.visit_id,
+                    exits_rad=list(record.exits_rad),
+                    x_estimate_m=record.x_m,
+                    y_estimate_m=record.y_m,
+                    odometer_m=record.odometer_m,
                 ),
             )
         elif isinstance(record, NodeDeparture):

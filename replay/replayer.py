@@ -4,8 +4,10 @@ The sweeps are put together from the camera's commands and images; every visit's
 sweep goes to the localizer in the order the robot took them. When the localizer
 asks for an active-vision probe, the probe sweeps the log holds for that visit
 answer it, matched by kind and move; a probe the log does not hold is answered
-``None``, and the decision records it as missing. The same log and settings give
-the same map, byte for byte.
+``None``, and the decision records it as missing. Each visit's exit scan
+(``/robot/node`` EXITS) goes with its sweep, and its departure tells the map which
+port the robot left by, as online. Logs of format 1 have no exit scans: their maps
+have no ports. The same log and settings give the same map, byte for byte.
 """
 
 from __future__ import annotations
@@ -31,10 +33,19 @@ from pipemap.localizer import (
 )
 from pipemap.recorder import Integrity, LogMessage, Topic
 from pipemap.recorder.messages import decode_png
-from pipemap.recorder.schemas import CompressedImage, SweepCommand
+from pipemap.recorder.schemas import CompressedImage, NodeEvent, SweepCommand
 from pipemap.replay.source import MessageSource
 
-__all__ = ["LoggedSweep", "ReplayResult", "VisitDecision", "replay", "sweeps_of", "visit_label"]
+__all__ = [
+    "LoggedExits",
+    "LoggedSweep",
+    "ReplayResult",
+    "VisitDecision",
+    "node_events_of",
+    "replay",
+    "sweeps_of",
+    "visit_label",
+]
 
 #: A probe in the log answers a request for the same kind and move, to this much.
 _PROBE_MATCH = 1e-9
@@ -53,6 +64,19 @@ class LoggedSweep:
 
 
 @dataclass(frozen=True)
+class LoggedExits:
+    """A visit's exit scan and where the robot left by, as the log holds them."""
+
+    visit_id: int
+    exits_rad: tuple[float, ...] | None = None
+    x_m: float = 0.0
+    y_m: float = 0.0
+    odometer_m: float | None = None
+    #: The pipe taken, relative to the arrival heading; ``None``: no departure.
+    departure_rad: float | None = None
+
+
+@dataclass(frozen=True)
 class VisitDecision:
     """The replay's decision for one node visit."""
 
@@ -64,6 +88,8 @@ class VisitDecision:
     latency_s: float
     #: Probes the localizer asked for that the log does not hold.
     probes_not_in_log: int
+    #: The visit's exit scan and departure (robot data), if the log has them.
+    exits: LoggedExits | None = None
 
 
 @dataclass
@@ -81,6 +107,9 @@ class ReplayResult:
     camera_angles: dict[int, float] = field(default_factory=dict)
     #: The image set of each visit's own sweep (probes aside), by sweep id.
     visit_sets: dict[int, ImageSet] = field(default_factory=dict)
+    #: The localizer after the replay: its map and its junctions' sweeps, ready to
+    #: go on (to drive a route on the same map, say).
+    localizer: Localizer | None = None
 
     def document(self) -> dict[str, Any]:
         """The map document, in the format of ``pipemap map --json``."""
@@ -157,6 +186,32 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> tuple[list[Logge
     return sweeps, warnings
 
 
+def node_events_of(messages: list[LogMessage]) -> dict[int, LoggedExits]:
+    """Each visit's exit scan and departure from ordered ``/robot`` messages."""
+    scans: dict[int, NodeEvent] = {}
+    departures: dict[int, float] = {}
+    for m in messages:
+        if m.topic != Topic.NODE:
+            continue
+        event = NodeEvent.FromString(m.data)
+        if event.kind == NodeEvent.EXITS:
+            scans.setdefault(event.visit_id, event)
+        elif event.kind == NodeEvent.DEPARTURE:
+            departures.setdefault(event.visit_id, event.exit_rad)
+    out: dict[int, LoggedExits] = {}
+    for visit_id in sorted(set(scans) | set(departures)):
+        scan = scans.get(visit_id)
+        out[visit_id] = LoggedExits(
+            visit_id,
+            None if scan is None else tuple(scan.exits_rad),
+            0.0 if scan is None else scan.x_estimate_m,
+            0.0 if scan is None else scan.y_estimate_m,
+            None if scan is None else scan.odometer_m,
+            departures.get(visit_id),
+        )
+    return out
+
+
 class _LoggedProbes:
     """Answers probe requests from the probe sweeps the log holds for one visit."""
 
@@ -191,16 +246,28 @@ def replay(
     for s in sweeps:
         if s.probe is not None:
             probes.setdefault(s.visit_id, []).append(s)
+    events = node_events_of(messages)
     localizer = Localizer(config)
     decided: list[VisitDecision] = []
     for i, sweep in enumerate(visits):
         answers = _LoggedProbes(probes.get(sweep.visit_id, []))
+        scan = events.get(sweep.visit_id)
+        exits = None if scan is None else scan.exits_rad
+        odometer = None if scan is None else scan.odometer_m
         start = time.perf_counter()
-        decision = localizer.localize(sweep.images, answers)
+        decision = localizer.localize(sweep.images, answers, exits, odometer)
         latency = time.perf_counter() - start
+        if scan is not None and scan.departure_rad is not None:
+            localizer.depart(scan.departure_rad)
         decided.append(
             VisitDecision(
-                sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, answers.not_in_log
+                sweep.visit_id,
+                sweep.sweep_id,
+                sweep.end_ns,
+                decision,
+                latency,
+                answers.not_in_log,
+                scan,
             )
         )
         if progress is not None:
@@ -222,4 +289,5 @@ def replay(
         images=sum(s.images.count for s in sweeps),
         camera_angles={s.sweep_id: s.images.camera_angle_rad for s in sweeps},
         visit_sets={s.sweep_id: s.images for s in visits},
+        localizer=localizer,
     )

@@ -3,8 +3,14 @@
 Per visit: the true node (from ``/truth/sweep``), the predicted node, similarity,
 margin, known or new, and the rotation estimate with its error against the true
 heading change. Counts of correct and wrong decisions, whether the map is the
-true graph of the visited nodes, and the paper's Table 1 (similarity of visits to
-known and to unknown junctions) and Table 2 (rotation error).
+true network, how much of it the run covered and whether the map's ports are the
+true pipe ends (:mod:`replay.coverage`), and the paper's Table 1 (similarity of
+visits to known and to unknown junctions) and Table 2 (rotation error).
+
+The map is ``correct`` when it is the true graph of the visited nodes under the
+visit correspondence *and* the run visited every true node and drove every true
+pipe; ``partial`` when it is right as far as it goes but the run missed some;
+``wrong`` otherwise.
 
 A decision is:
 
@@ -28,6 +34,7 @@ from pipemap.errors import LogFormatError
 from pipemap.localizer import FastConfig, LocalizerConfig, TopoMap, pairwise_matches, wrap_angle_rad
 from pipemap.recorder import Topic
 from pipemap.recorder.schemas import TrueSweep
+from pipemap.replay.coverage import Coverage, coverage_of, ports_correct, true_network
 from pipemap.replay.replayer import ReplayResult, replay, visit_label
 from pipemap.replay.source import MessageSource
 
@@ -67,6 +74,8 @@ class VisitScore:
     true_rotation_rad: float | None
     rotation_error_rad: float | None
     latency_ms: float
+    arrival_port: int | None = None
+    departure_port: int | None = None
 
 
 @dataclass(frozen=True)
@@ -105,6 +114,19 @@ class ScoreReport:
     true_nodes: int
     predicted_nodes: int
     pairs: PairStatistics
+    #: ``None`` when the log holds no true network.
+    coverage: Coverage | None = None
+    #: ``None`` when the map has no ports.
+    ports_correct: bool | None = None
+    #: The map is right as far as the run went (``map_correct`` needs coverage too).
+    mapped_part_correct: bool = False
+
+    @property
+    def map_status(self) -> str:
+        """``correct``, ``partial`` (right as far as the run went) or ``wrong``."""
+        if self.map_correct:
+            return "correct"
+        return "partial" if self.mapped_part_correct else "wrong"
 
     def counts(self) -> dict[str, int]:
         """Decisions by outcome."""
@@ -135,6 +157,9 @@ class ScoreReport:
             "integrity": self.integrity,
             "threshold": self.threshold,
             "map_correct": self.map_correct,
+            "map": self.map_status,
+            "coverage": None if self.coverage is None else self.coverage.document(),
+            "ports_correct": self.ports_correct,
             "visits": len(self.visits),
             "true_nodes": self.true_nodes,
             "predicted_nodes": self.predicted_nodes,
@@ -161,6 +186,8 @@ class ScoreReport:
                     "rotation_rad": _round(v.rotation_rad),
                     "true_rotation_rad": _round(v.true_rotation_rad),
                     "rotation_error_rad": _round(v.rotation_error_rad),
+                    "arrival_port": v.arrival_port,
+                    "departure_port": v.departure_port,
                 }
                 for v in self.visits
             ],
@@ -270,7 +297,8 @@ def score_replay(
     created: dict[int, tuple[str, float]] = {}  # map node -> (true label, true heading)
     seen: set[str] = set()
     visits = []
-    for v in result.visits:
+    records = result.topomap.visit_records
+    for index, v in enumerate(result.visits):
         truth = truths.get(v.sweep_id)
         if truth is None:
             raise LogFormatError(f"{source.name}: no ground truth for sweep {v.sweep_id}")
@@ -304,19 +332,31 @@ def score_replay(
                 true_rotation_rad=true_turn,
                 rotation_error_rad=error,
                 latency_ms=1000.0 * v.latency_s,
+                arrival_port=d.arrival_port,
+                departure_port=records[index].departure_port if index < len(records) else None,
             )
         )
     predicted = [v.predicted_node for v in visits]
     true = [v.true_node for v in visits]
+    mapped = bool(visits) and _map_correct(predicted, true)
+    network = true_network(source)
+    coverage = None if network is None else coverage_of(network, true)
+    ports = None
+    if network is not None:
+        ports = ports_correct(result.topomap, network, created)
+    complete = coverage is None or coverage.complete
     return ScoreReport(
         log=source.name,
         integrity=result.integrity.value,
         threshold=threshold,
         visits=tuple(visits),
-        map_correct=bool(visits) and _map_correct(predicted, true),
+        map_correct=mapped and complete,
         true_nodes=len(set(true)),
         predicted_nodes=result.topomap.node_count,
         pairs=pair_statistics(result, truths, fast),
+        coverage=coverage,
+        ports_correct=ports,
+        mapped_part_correct=mapped,
     )
 
 

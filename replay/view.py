@@ -109,9 +109,16 @@ def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
 
     topomap = TopoMap()
     visits: dict[int, list[str]] = {}
-    for v in result.visits:
+    records = result.topomap.visit_records
+    for i, v in enumerate(result.visits):
         node = v.decision.node
-        topomap.visit(node)
+        # The replay's own map, grown visit by visit: edges join ports, and a
+        # traversal that conflicts with the map adds none.
+        ports = result.topomap.ports(node) if node == topomap.node_count else None
+        record = records[i] if i < len(records) else None
+        topomap.visit(node, ports, None if record is None else record.arrival_port)
+        if record is not None:
+            topomap.depart(record.departure_port)
         visits.setdefault(node, []).append(visit_label(v.visit_id))
         set_time(rec, v.time_ns)
         ids = [str(n) for n in range(topomap.node_count)]

@@ -47,6 +47,10 @@ def _run(argv: Sequence[str] | None) -> int:
         if args.command == "replay":
             return replay_commands.run_replay(args, sys.stdout, sys.stderr)
         return replay_commands.run_score(args, sys.stdout, sys.stderr)
+    if args.command == "route":
+        from pipemap.cli.route_command import run_route
+
+        return run_route(args, sys.stdout)
     if args.command == "experiment":
         from pipemap.cli.experiment_command import run_experiment
 

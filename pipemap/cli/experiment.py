@@ -13,6 +13,10 @@ scored from its log, exactly as a user would, so the numbers here are the number
   (Figure 6);
 * the autonomous exploration from each of the seven nodes, at pipemap's defaults.
 
+The autonomous robot explores by the paper's right-hand rule (``--explore
+right-hand``), as published. On ``paper``, a tree, pipemap's map-driven exploration
+takes the same walk.
+
 This module computes; :mod:`pipemap.cli.experiment_report` writes the files.
 """
 
@@ -28,7 +32,7 @@ from typing import Any
 
 from pipemap import __version__
 from pipemap.localizer import PAPER
-from pipemap.recorder import RecordSettings, record_run
+from pipemap.recorder import Explore, RecordSettings, record_run
 from pipemap.replay import FileSource, PairStatistics, replay, score_replay
 from pipemap.sim.episode import Condition
 from pipemap.sim.network import build_network
@@ -152,6 +156,7 @@ def _plan(settings: ExperimentSettings) -> list[tuple[str, str, RecordSettings]]
             images_per_sweep=images,
             align_sweeps=align,
             threshold=settings.threshold,
+            explore=Explore.RIGHT_HAND,
         )
 
     plan = [

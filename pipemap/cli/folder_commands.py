@@ -10,8 +10,8 @@ import argparse
 import json
 from typing import Any, TextIO
 
-from pipemap.cli.folders import load_image_sets
-from pipemap.cli.parser import fast_config, two_view_settings
+from pipemap.cli.folders import load_image_sets, read_robot_notes
+from pipemap.cli.parser import fast_config, port_check, two_view_settings
 from pipemap.localizer import (
     ImageSet,
     Localizer,
@@ -92,6 +92,12 @@ def _rotation(visit: dict[str, Any]) -> str:
     return "-" if rotation is None else f"{rotation:+.4f}"
 
 
+def _end(edge: dict[str, Any], end: str) -> str:
+    """An edge's end as ``node`` or ``node:port``."""
+    port = edge[f"{end}_port"]
+    return str(edge[end]) if port is None else f"{edge[end]}:{port}"
+
+
 def run_map(args: argparse.Namespace, out: TextIO) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     sets = _load(args)
@@ -102,9 +108,17 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
         distinct_consecutive=not args.allow_repeat,
         two_view=two_view,
         verify=verify,
+        port_check=port_check(args),
     )
     localizer = Localizer(config)
-    visits = [(name, localizer.localize(s)) for name, s in zip(args.dirs, sets, strict=True)]
+    visits = []
+    for name, image_set in zip(args.dirs, sets, strict=True):
+        notes = read_robot_notes(name)
+        visits.append(
+            (name, localizer.localize(image_set, None, notes.exits_rad, notes.odometer_m))
+        )
+        if notes.departure_rad is not None:
+            localizer.depart(notes.departure_rad)
     doc = map_document(localizer.map, visits)
     if args.json:
         out.write(dumps_document(doc))
@@ -117,6 +131,6 @@ def run_map(args: argparse.Namespace, out: TextIO) -> int:
             f"{v['set']:<{width}}  {v['node']:4d}  {'yes' if v['known'] else 'no ':>5}"
             f"  {v['similarity']:10.3f}  {margin:>6}  {_rotation(v):>8}\n"
         )
-    edges = ", ".join(f"{e['u']}-{e['v']} ({e['label']})" for e in doc["edges"])
+    edges = ", ".join(f"{_end(e, 'u')}-{_end(e, 'v')} ({e['label']})" for e in doc["edges"])
     out.write(f"{len(doc['nodes'])} nodes; edges: {edges or 'none'}\n")
     return 0

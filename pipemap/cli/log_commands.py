@@ -82,6 +82,8 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         from pipemap.cli.view_command import check_view_target
 
         view_target = check_view_target(target, args.save, args.force)
+    from pipemap.recorder.online import Explore
+
     settings = RecordSettings(
         network=args.network,
         start=args.start,
@@ -91,6 +93,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         images_per_sweep=args.images,
         align_sweeps=args.align_sweeps,
         threshold=args.threshold,
+        explore=Explore(args.explore),
     )
     progress = _progress_printer(err)
     restore = _interrupt_once()
@@ -106,12 +109,18 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     if progress is not None:
         err.write("\n")
     size_mb = target.stat().st_size / 1e6
+    condition = args.condition
+    if condition == "autonomous":
+        condition += f" (explore {args.explore})"
+    status = result.status
+    if result.status == "finished" and not result.ok:
+        status = "finished, but not every node was visited"
     out.write(
         f"recorded {target} ({size_mb:.1f} MB, {result.messages} messages): network "
-        f"{args.network}, condition {args.condition}, {result.sweeps} sweeps, "
+        f"{args.network}, condition {condition}, {result.sweeps} sweeps, "
         f"{result.visits} visits of {len(result.true_nodes)}/{result.node_count} nodes, "
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, "
-        f"{result.status}\n"
+        f"{status}\n"
     )
     if args.view:
         from pipemap.cli.view_command import view_recorded
@@ -167,6 +176,7 @@ def run_info(args: argparse.Namespace, out: TextIO) -> int:
             f"messages   {doc['messages']}",
             f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
             f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
+            f"explore {meta.get('explore', 'right-hand')}, "
             f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images",
             f"sweeps     {doc['sweeps']} in {doc['visits']} node visits",
             f"result     {result.get('status', 'none recorded')}",

@@ -145,6 +145,17 @@ def test_autonomous_run_saves_a_sweep_at_every_visit(
     assert "finished" in out and "7/7 nodes" in out
     nodes = [read_info(f)["node"] for f in sorted(target.iterdir())]
     assert nodes == list("SABACDCFCECAS")
+    assert "explore map" in out
+    # sweep.txt holds what the robot noted, so `pipemap map` over the folders gives
+    # the map its ports, as a replay of the run's log would.
+    notes = (target / "0002" / "sweep.txt").read_text()
+    assert "exits: " in notes and "departure: " in notes and "odometer_m: " in notes
+    status, out, err = _run(["map", *map(str, sorted(target.iterdir())), "--json"], capfd)
+    assert status == 0, err
+    doc = json.loads(out)
+    assert [len(n["ports"]) for n in doc["nodes"]][:3] == [1, 3, 1]
+    assert all(e["u_port"] is not None and e["v_port"] is not None for e in doc["edges"])
+    assert doc["visits"][1]["arrival_port"] == 0
 
 
 def test_images_per_sweep_is_configurable(
@@ -170,7 +181,7 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     from pipemap.sim.controller import ExplorationResult, RunStatus
     from pipemap.sim.episode import Pose, Sweep
 
-    def one_sweep_run(world, camera, seed, start=None, config=None):  # type: ignore[no-untyped-def]
+    def one_sweep_run(world, camera, seed, start=None, config=None, sink=None, policy=None):  # type: ignore[no-untyped-def]
         sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8), Pose(0.0, 0.0, 0.05), "S")
         return ExplorationResult(RunStatus.FINISHED, sweeps=[sweep], distance_m=1.0)
 
