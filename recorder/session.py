@@ -153,9 +153,11 @@ class Progress:
 class RecordResult:
     """How a recording ended and what it holds.
 
-    ``status`` is the robot's (``finished``, a watchdog's reason, or ``complete`` /
-    ``incomplete`` for a placed tour). ``true_nodes`` is the set of nodes whose
-    sweeps the log holds, from the simulator's truth, for the summary only.
+    ``status`` is the robot's (``finished``, ``map inconsistent``, a watchdog's
+    reason, or ``complete`` / ``incomplete`` for a placed tour). ``true_nodes`` is
+    the set of nodes whose sweeps the log holds and ``pipes_driven`` the number of
+    pipes between two consecutive ones, from the simulator's truth, for the summary
+    only. ``ok``: the run finished and covered every node and pipe.
     """
 
     status: str
@@ -167,6 +169,8 @@ class RecordResult:
     messages: int
     true_nodes: frozenset[str]
     node_count: int
+    pipes_driven: int = 0
+    pipe_count: int = 0
 
 
 class _OnlineSink:
@@ -187,6 +191,7 @@ class _OnlineSink:
         self.sweeps = 0
         self.visits = 0
         self.true_nodes: set[str] = set()
+        self.true_path: list[str] = []
         self.now_ns = 0
 
     @property
@@ -218,6 +223,7 @@ class _OnlineSink:
             self.sweeps += 1
             if sweep.probe is None:
                 self.true_nodes.add(sweep.true_node)
+                self.true_path.append(sweep.true_node)
         else:
             self.writer.put(record)
         self.online(record)
@@ -313,6 +319,12 @@ class _PlacedRun:
         return "complete" if episode.tour.complete else "incomplete"
 
 
+def _pipes_driven(network: Network, path: list[str]) -> int:
+    """How many of the network's pipes join two consecutive nodes of ``path``."""
+    pipes = {frozenset((p.a, p.b)) for p in network.pipes}
+    return len({frozenset(ab) for ab in zip(path, path[1:], strict=False)} & pipes)
+
+
 def record_run(
     path: Path,
     settings: RecordSettings,
@@ -355,6 +367,7 @@ def record_run(
                 distance, duration = result.distance_m, result.duration_ns
                 # The robot believes it is done; the truth says whether it covered all.
                 covered = sink.true_nodes - {"?"} == set(network.labels)
+                covered = covered and _pipes_driven(network, sink.true_path) == len(network.pipes)
                 ok = result.status is RunStatus.FINISHED and covered
             else:
                 placed = _PlacedRun(world, settings, sink)
@@ -380,5 +393,7 @@ def record_run(
         duration_ns=duration,
         messages=count,
         true_nodes=frozenset(sink.true_nodes - {"?"}),
+        pipes_driven=_pipes_driven(network, sink.true_path),
+        pipe_count=len(network.pipes),
         node_count=len(network.nodes),
     )

@@ -114,11 +114,12 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         condition += f" (explore {args.explore})"
     status = result.status
     if result.status == "finished" and not result.ok:
-        status = "finished, but not every node was visited"
+        status = "finished, but not every node and pipe was visited"
     out.write(
         f"recorded {target} ({size_mb:.1f} MB, {result.messages} messages): network "
         f"{args.network}, condition {condition}, {result.sweeps} sweeps, "
-        f"{result.visits} visits of {len(result.true_nodes)}/{result.node_count} nodes, "
+        f"{result.visits} visits of {len(result.true_nodes)}/{result.node_count} nodes "
+        f"({result.pipes_driven}/{result.pipe_count} pipes), "
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, "
         f"{status}\n"
     )

@@ -128,14 +128,18 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  #
         folder = target / f"{index:04d}"
         write_image_set(folder, sweep.images, info, sweep.camera_angle_rad, notes.get(index))
     visited = {s.true_node for s in result.sweeps} - {"?"}
+    path = [s.true_node for s in result.sweeps]
+    pipes = {frozenset((p.a, p.b)) for p in network.pipes}
+    driven = len({frozenset(ab) for ab in zip(path, path[1:], strict=False)} & pipes)
     # The robot believes it is done; the simulator knows whether it covered the network.
-    covered = len(visited) == len(network.nodes)
+    covered = len(visited) == len(network.nodes) and driven == len(pipes)
     status = result.status.value
     if result.status is RunStatus.FINISHED and not covered:
-        status = "stopped early: not every node was visited"
+        status = "stopped early: not every node and pipe was visited"
     out.write(
         f"network {args.network}, condition autonomous, explore {explore.value}: "
-        f"{len(result.sweeps)} sweeps at {len(visited)}/{len(network.nodes)} nodes, "
+        f"{len(result.sweeps)} sweeps at {len(visited)}/{len(network.nodes)} nodes "
+        f"({driven}/{len(pipes)} pipes), "
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, {status}\n"
     )
     return 0 if result.status is RunStatus.FINISHED and covered else 1

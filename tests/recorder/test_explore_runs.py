@@ -133,13 +133,21 @@ def test_a_false_merge_every_visit_ends_the_run(tmp_path: Path) -> None:
     assert _events(path)[-1] == "stopped: map inconsistent"
 
 
-def test_the_right_hand_rule_is_still_there(tmp_path: Path) -> None:
+def test_the_right_hand_rule_is_still_there_and_its_map_is_partial(tmp_path: Path) -> None:
     path = tmp_path / "rh.mcap"
-    result = _record(path, "grid:3x3", 32, explore=Explore.RIGHT_HAND)
-    # It goes round the outside of the grid and never enters the central cross.
+    result = _record(path, "grid:2x3", explore=Explore.RIGHT_HAND)
+    # It goes round the outside of the grid: every junction, but never the middle pipe
+    # r0c1-r1c1. The robot believes it is done; the truth says it is not.
     assert result.status == "finished" and not result.ok  # type: ignore[attr-defined]
-    assert "r1c1" not in result.true_nodes  # type: ignore[attr-defined]
+    assert (result.pipes_driven, result.pipe_count) == (7, 8)  # type: ignore[attr-defined]
+    assert len(result.true_nodes) == 7  # type: ignore[attr-defined]
     assert read_log(path).metadata["pipemap.run"]["explore"] == "right-hand"
+    source = FileSource(path)
+    report = score_replay(replay(source), source, 0.36)
+    # Every decision right and the map right as far as it goes, but not the network.
+    assert report.counts()["false_merge"] == report.counts()["false_new"] == 0
+    assert not report.map_correct and report.map_status == "partial"
+    assert report.ports_correct is True
 
 
 # --- routes ---------------------------------------------------------------------------
