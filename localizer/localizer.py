@@ -62,6 +62,10 @@ __all__ = [
 
 #: The paper's known/new threshold on image-set similarity.
 DEFAULT_THRESHOLD = 0.36
+#: A departure heading (and the arrival, straight behind) names the exit nearest to
+#: it within this: half the smallest angle between two pipes of a junction (60
+#: degrees), so never two exits.
+_DEPARTURE_TOLERANCE_RAD = math.pi / 6.0
 
 
 class ProbeKind(enum.Enum):
@@ -393,7 +397,7 @@ class Localizer:
                 new_ports, exit_ports = clockwise_ports(exits)
         arrival = None
         if exits is not None and exit_ports is not None and self.map.previous is not None:
-            behind = _nearest_exit(exits, math.pi, self.config.port_tolerance_rad)
+            behind = _nearest_exit(exits, math.pi, _DEPARTURE_TOLERANCE_RAD)
             arrival = None if behind is None else exit_ports[behind]
         self.map.visit(node, new_ports, arrival, odometer_m)
         decision = Decision(
@@ -436,12 +440,14 @@ class Localizer:
 
     def depart(self, exit_rad: float | None) -> int | None:
         """Record that the robot leaves the junction of its last visit by the exit at
-        ``exit_rad`` (relative to its heading during the sweep); returns that port,
-        or ``None`` when it is not known (no exits, or none near ``exit_rad``)."""
+        ``exit_rad`` (relative to its heading during the sweep): the exit nearest to
+        it, within half the smallest junction angle (a robot turning straight back
+        leaves at pi, its scan may have put that pipe a little off). Returns that
+        port, or ``None`` when it is not known (no exits, or none near)."""
         last = self._last
         port = None
         if exit_rad is not None and last is not None and last.exits_rad is not None:
-            index = _nearest_exit(last.exits_rad, exit_rad, self.config.port_tolerance_rad)
+            index = _nearest_exit(last.exits_rad, exit_rad, _DEPARTURE_TOLERANCE_RAD)
             if index is not None and last.exit_ports is not None:
                 port = last.exit_ports[index]
         self.map.depart(port)
