@@ -127,6 +127,7 @@ def test_a_false_merge_every_visit_ends_the_run(tmp_path: Path) -> None:
     path = tmp_path / "merge.mcap"
     result = _record(path, "grid:3x3", 32, threshold=-1.0)
     assert result.status == "map inconsistent"  # type: ignore[attr-defined]
+    assert result.duration_ns < 600 * 10**9  # type: ignore[attr-defined]
     source = FileSource(path)
     report = score_replay(replay(source, LocalizerConfig(threshold=-1.0)), source, -1.0)
     assert report.counts()["false_merge"] >= 1

@@ -181,7 +181,10 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     from pipemap.sim.controller import ExplorationResult, RunStatus
     from pipemap.sim.episode import Pose, Sweep
 
+    policies = []
+
     def one_sweep_run(world, camera, seed, start=None, config=None, sink=None, policy=None):  # type: ignore[no-untyped-def]
+        policies.append(policy)
         sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8), Pose(0.0, 0.0, 0.05), "S")
         return ExplorationResult(RunStatus.FINISHED, sweeps=[sweep], distance_m=1.0)
 
@@ -191,3 +194,12 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     assert status == 1
     assert "1/7 nodes" in out and "stopped early" in out
     assert (tmp_path / "early" / "0001" / "info.txt").is_file()  # what was produced is kept
+    # --explore hands the controller its policy: the map's by default, or the paper's.
+    status, out, _ = _run(
+        [*argv, "--explore", "right-hand", "--save-sweeps", str(tmp_path / "rh")], capfd
+    )
+    from pipemap.recorder.online import MapPolicy
+    from pipemap.sim.policy import RightHandPolicy
+
+    assert [type(p) for p in policies] == [MapPolicy, RightHandPolicy]
+    assert "explore right-hand" in out
