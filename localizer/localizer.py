@@ -438,6 +438,17 @@ class Localizer:
         )
         return [best, *others][: self.config.verify_candidates]
 
+    def expected_node(self) -> int | None:
+        """The junction the map says the robot is coming to: the far end of the edge
+        at the port it left its last junction by (``None`` when the map does not know:
+        an untraversed pipe, no ports, a traversal's first visit)."""
+        previous = self.map.previous
+        if previous is None:
+            return None
+        port = self.map.visit_records[-1].departure_port
+        edge = None if port is None else self.map.edge_at(previous, port)
+        return None if edge is None or port is None else edge.other(previous, port)[0]
+
     def depart(self, exit_rad: float | None) -> int | None:
         """Record that the robot leaves the junction of its last visit by the exit at
         ``exit_rad`` (relative to its heading during the sweep): the exit nearest to
@@ -472,20 +483,28 @@ class Localizer:
         exits: tuple[float, ...] | None,
         rejected: list[tuple[int, str]],
     ) -> tuple[int, TwoViewFit, PortMatch | None] | None:
-        """The first of the best junctions (refined ones first, each by similarity)
-        that the sweep's keypoints fit and whose ports the exits fit, with that fit
-        (unturned) and the ports; ``None`` if none does. Candidates whose keypoints
-        fit but whose ports do not go to ``rejected``."""
+        """The first of the junction the map expects (:meth:`expected_node`) and the
+        best junctions (refined ones first, each by similarity) that the sweep's
+        keypoints fit and whose ports the exits fit, with that fit (unturned) and the
+        ports; ``None`` if none does. Candidates whose keypoints fit but whose ports
+        do not go to ``rejected``."""
         exclude = self._excluded()
         # Refined junctions first, then screened ones: the two scores differ in scale.
         allowed = [i for i in range(len(matches)) if i != exclude]
         ranked = sorted(allowed, key=lambda i: (not matches[i].refined, -matches[i].similarity, i))
+        ranked = ranked[: self.config.verify_candidates]
+        # The junction the map says this pipe leads to goes first: the similarity may
+        # rank it low (a revisit from another pipe, seen from a little off the centre)
+        # while its keypoints fit with hundreds of inliers.
+        expected = self.expected_node()
+        if expected is not None and expected != exclude:
+            ranked = [expected, *(i for i in ranked if i != expected)]
         # A fit with fewer inliers would not count: let it stop as soon as it knows.
         config = replace(
             self.config.two_view_config,
             min_inliers=max(self.config.two_view_config.min_inliers, self.config.verify_inliers),
         )
-        for i in ranked[: self.config.verify_candidates]:
+        for i in ranked:
             fit = fit_two_view(features, self._features[i], config, matches[i].rotation_rad)
             if fit is not None and fit.inliers >= self.config.verify_inliers:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)

@@ -835,3 +835,33 @@ def test_a_new_traversal_may_start_at_the_last_junction() -> None:
     d = loc.localize(junction(1))  # left out right after junction 1, allowed now
     assert d.known and d.node == 1
     assert len(loc.map.edges()) == 1
+
+
+def test_the_junction_the_map_expects_is_tried_first() -> None:
+    # Junction 0 is a T, seen through noise; junction 2 a dead end that looks exactly
+    # like junction 0 did without it. Only one candidate gets the two-view check.
+    def walk(loc: Localizer) -> Decision:
+        loc.localize(junction(0, noise=0.3), exits_rad=TEE_EXITS)
+        assert loc.expected_node() is None  # the run's first junction
+        loc.depart(PI / 2)  # port 1
+        assert loc.expected_node() is None  # an untraversed pipe
+        loc.localize(junction(1), exits_rad=CORNER_EXITS)
+        loc.depart(PI / 2)
+        assert not loc.localize(junction(0), exits_rad=(PI,)).known  # its exits say new
+        loc.depart(PI)
+        assert loc.localize(junction(1), exits_rad=(PI / 2, PI)).node == 1
+        loc.depart(PI)  # back along the pipe from junction 0
+        assert Localizer.expected_node(loc) == 0
+        return loc.localize(junction(0), exits_rad=TEE_EXITS)
+
+    d = walk(Localizer(LocalizerConfig(verify_candidates=1)))
+    assert d.known and d.node == 0
+
+    # Without the map's prior: the most similar junction, 2, is the only one tried,
+    # and its exits do not fit.
+    class NoPrior(Localizer):
+        def expected_node(self) -> int | None:
+            return None
+
+    d = walk(NoPrior(LocalizerConfig(verify_candidates=1)))
+    assert not d.known and [c for c, _ in d.rejected] == [2]
