@@ -22,30 +22,26 @@ from pathlib import Path
 
 from pipemap import __version__
 from pipemap.recorder import RecordSettings, record_run
-from pipemap.recorder.session import _gray_set
+from pipemap.recorder.online import Explore, OnlineLocalizer, make_policy
 from pipemap.sim.controller import ExplorerConfig, autonomous_run
 from pipemap.sim.network import build_network
-from pipemap.sim.stream import SweepEnd
 from pipemap.sim.world import CameraSpec, World
 
 
 def _run_alone(resolution: int, with_localizer: bool) -> float:
+    """The run without a log; with the localizer, exploring its map as ``record`` does."""
     from pipemap.localizer import Localizer
 
     network = build_network("paper", seed=0)
     camera = CameraSpec(resolution_px=resolution)
-    localizer = Localizer()
-
-    def sink(record: object) -> None:
-        if isinstance(record, SweepEnd):
-            sweep = record.sweep
-            image_set = _gray_set(sweep.images, camera.fov_rad, sweep.camera_angle_rad)
-            localizer.localize(image_set, None)
-
+    config = ExplorerConfig()
+    online = OnlineLocalizer(Localizer(), camera.fov_rad)
+    explore = Explore.MAP if with_localizer else Explore.RIGHT_HAND
+    policy = make_policy(explore, online, config.start_radius_m, config.drift_per_m)
     start = time.perf_counter()
     with World(network, seed=0) as world:
         autonomous_run(
-            world, camera, 0, config=ExplorerConfig(), sink=sink if with_localizer else None
+            world, camera, 0, config=config, sink=online if with_localizer else None, policy=policy
         )
     return time.perf_counter() - start
 

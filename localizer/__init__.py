@@ -10,6 +10,14 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from pipemap.localizer.explore import (
+        ExploreConfig,
+        ExploreEnd,
+        ExploreStep,
+        MapExplorer,
+        Planner,
+        RouteFollower,
+    )
     from pipemap.localizer.fastmatch import (
         FastConfig,
         FastMatcher,
@@ -37,11 +45,25 @@ if TYPE_CHECKING:
         dumps_document,
         map_document,
     )
+    from pipemap.localizer.ports import (
+        PORT_TOLERANCE_RAD,
+        PortMatch,
+        clockwise_ports,
+        match_ports,
+        nearest_exit,
+    )
     from pipemap.localizer.presets import (
         PAPER_THRESHOLD,
         ROBUST_HIGHPASS_FRACTION,
         ROBUST_THRESHOLD,
         ROBUST_ZOOMS,
+    )
+    from pipemap.localizer.routes import (
+        RouteStep,
+        describe_step,
+        nearest_route,
+        plan_route,
+        route_length_m,
     )
     from pipemap.localizer.similarity import (
         PAPER_SCALE,
@@ -56,7 +78,7 @@ if TYPE_CHECKING:
         relative_rotation_rad,
         wrap_angle_rad,
     )
-    from pipemap.localizer.topomap import MapEdge, TopoMap
+    from pipemap.localizer.topomap import MapEdge, MapVisit, TopoMap
     from pipemap.localizer.twoview import (
         SweepFeatures,
         TwoViewConfig,
@@ -70,6 +92,23 @@ if TYPE_CHECKING:
 #: imports :mod:`pipemap.localizer.presets` for its help without paying for numpy,
 #: scipy and OpenCV.
 _EXPORTS = {
+    "ExploreConfig": "pipemap.localizer.explore",
+    "ExploreEnd": "pipemap.localizer.explore",
+    "ExploreStep": "pipemap.localizer.explore",
+    "MapExplorer": "pipemap.localizer.explore",
+    "Planner": "pipemap.localizer.explore",
+    "RouteFollower": "pipemap.localizer.explore",
+    "PORT_TOLERANCE_RAD": "pipemap.localizer.ports",
+    "PortMatch": "pipemap.localizer.ports",
+    "clockwise_ports": "pipemap.localizer.ports",
+    "match_ports": "pipemap.localizer.ports",
+    "nearest_exit": "pipemap.localizer.ports",
+    "RouteStep": "pipemap.localizer.routes",
+    "describe_step": "pipemap.localizer.routes",
+    "nearest_route": "pipemap.localizer.routes",
+    "plan_route": "pipemap.localizer.routes",
+    "route_length_m": "pipemap.localizer.routes",
+    "MapVisit": "pipemap.localizer.topomap",
     "PAPER_THRESHOLD": "pipemap.localizer.presets",
     "ROBUST_HIGHPASS_FRACTION": "pipemap.localizer.presets",
     "ROBUST_THRESHOLD": "pipemap.localizer.presets",
@@ -139,18 +178,28 @@ __all__ = [
     "PAPER",
     "PAPER_SCALE",
     "Decision",
+    "ExploreConfig",
+    "ExploreEnd",
+    "ExploreStep",
     "FastConfig",
     "FastMatcher",
     "ImageSet",
     "Localizer",
     "LocalizerConfig",
     "MapEdge",
+    "MapExplorer",
+    "MapVisit",
+    "PORT_TOLERANCE_RAD",
+    "Planner",
     "PairPeak",
+    "PortMatch",
     "PreparedSet",
     "ProbeKind",
     "ProbeOutcome",
     "ProbeRequest",
     "ProbeSource",
+    "RouteFollower",
+    "RouteStep",
     "SetMatch",
     "SweepFeatures",
     "TopoMap",
@@ -158,20 +207,27 @@ __all__ = [
     "TwoViewFit",
     "best_offset",
     "best_candidate",
+    "clockwise_ports",
+    "describe_step",
     "decision_record",
     "dumps_document",
     "fit_two_view",
     "overlapping_images",
     "map_document",
+    "match_ports",
+    "nearest_exit",
+    "nearest_route",
     "ncc_same",
     "pair_peak",
     "paper_scaled",
     "pinhole_rotation_rad",
+    "plan_route",
     "pairwise_matches",
     "prepare",
     "probe_plan",
     "reference_match",
     "relative_rotation_rad",
+    "route_length_m",
     "sweep_features",
     "wrap_angle_rad",
 ]

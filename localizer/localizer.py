@@ -10,18 +10,32 @@ Active vision is a protocol, not motion: the caller passes a :class:`ProbeSource
 that turns a :class:`ProbeRequest` into an image set (the simulator moves the robot
 and sweeps; a replay looks the sweep up in the log) or answers ``None`` when it
 cannot, which the decision records.
+
+Ports: the caller may pass the junction's exits (the pipes the robot's range scan
+found, as headings relative to the robot). A new junction keeps them as its ports;
+a revisit's exits, turned by the measured rotation, must line up with the known
+junction's ports (:mod:`localizer.ports`). A candidate whose ports disagree is
+evidence against the match: it is passed over, and the next candidate is tried
+(the visit is new when none is left). The range scan is a second, independent
+sensor; a false merge corrupts the map's topology and makes an explorer skip
+pipes, while a false new node only costs a second look, which later traversals
+expose as port conflicts. :meth:`Localizer.depart` records the port the robot
+leaves by.
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.ports import PORT_TOLERANCE_RAD, PortMatch, clockwise_ports, match_ports
+from pipemap.localizer.ports import nearest_exit as _nearest_exit
 from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
@@ -50,6 +64,10 @@ __all__ = [
 
 #: The localizer's default threshold: the paper's (see :mod:`.presets`).
 DEFAULT_THRESHOLD = PAPER_THRESHOLD
+#: A departure heading (and the arrival, straight behind) names the exit nearest to
+#: it within this: half the smallest angle between two pipes of a junction (60
+#: degrees), so never two exits.
+_DEPARTURE_TOLERANCE_RAD = math.pi / 6.0
 
 
 class ProbeKind(enum.Enum):
@@ -131,6 +149,11 @@ class LocalizerConfig:
     #: A sweep with fewer keypoints is decided by the threshold (a 32 px sweep has
     #: about 25, a 96 px one about 2000).
     verify_min_keypoints: int = 200
+    #: With the visit's exits given: a candidate is recognised only if the exits,
+    #: turned by the measured rotation, line up with its ports within
+    #: ``port_tolerance_rad`` (see :mod:`localizer.ports`). Not in the paper.
+    port_check: bool = True
+    port_tolerance_rad: float = PORT_TOLERANCE_RAD
 
     def __post_init__(self) -> None:
         if not -1.0 <= self.threshold <= 1.0:
@@ -141,11 +164,16 @@ class LocalizerConfig:
             raise LocalizerError("verify decides by the two-view fit: it needs two_view")
         if self.verify_inliers < 1 or self.verify_candidates < 1:
             raise LocalizerError("verify_inliers and verify_candidates must be >= 1")
+        if not 0.0 < self.port_tolerance_rad < math.pi / 2.0:
+            raise LocalizerError(
+                f"port tolerance must be in (0, pi/2) rad, got {self.port_tolerance_rad}"
+            )
 
 
 #: The paper's rules: every known junction competes (the previous visit's included),
-#: the threshold decides, and the rotation is the NCC peak shift's.
-PAPER = LocalizerConfig(distinct_consecutive=False, two_view=False, verify=False)
+#: the threshold decides, the rotation is the NCC peak shift's, and exits are not
+#: compared.
+PAPER = LocalizerConfig(distinct_consecutive=False, two_view=False, verify=False, port_check=False)
 
 
 @dataclass(frozen=True)
@@ -161,6 +189,13 @@ class Decision:
     ``missing_probes`` counts requested probes the caller could not supply.
     ``two_view`` is the two-view fit with the recognised junction (known visits
     only, with ``LocalizerConfig.two_view``; ``None`` if too few keypoints fit).
+
+    With the visit's exits given: ``exits_rad`` are they, ``exit_ports`` the port of
+    the node that each is (``None`` without exits), ``arrival_port`` the port the
+    robot came in by (the exit behind it; ``None`` on a traversal's first visit),
+    ``port_residual_rad`` the largest misfit of a known visit's exits with its
+    ports, and ``rejected`` the candidates the images matched but whose ports did
+    not, each with the reason.
     """
 
     node: int
@@ -171,6 +206,11 @@ class Decision:
     match: SetMatch | None
     probes: tuple[ProbeOutcome, ...] = ()
     two_view: TwoViewFit | None = None
+    exits_rad: tuple[float, ...] | None = None
+    exit_ports: tuple[int, ...] | None = None
+    arrival_port: int | None = None
+    port_residual_rad: float | None = None
+    rejected: tuple[tuple[int, str], ...] = ()
 
     @property
     def rotation_rad(self) -> float | None:
@@ -231,6 +271,7 @@ class Localizer:
         #: Keypoints by node (with ``config.two_view``), computed once per sweep, kept compact.
         self._features: list[StoredFeatures] = []
         self.map = TopoMap()
+        self._last: Decision | None = None
 
     @property
     def known_count(self) -> int:
@@ -254,12 +295,32 @@ class Localizer:
         best, sim, margin = best_candidate(matches, exclude)
         return matches, best, sim, margin
 
-    def localize(self, query: ImageSet, probes: ProbeSource | None = None) -> Decision:
+    def _ports_of(
+        self, node: int, exits: tuple[float, ...] | None, rotation_rad: float | None
+    ) -> PortMatch | None:
+        """Whether ``exits`` fit ``node``'s ports after ``rotation_rad``; ``None`` when
+        there is nothing to compare (no exits, no ports, no rotation)."""
+        ports = self.map.ports(node)
+        if exits is None or ports is None or rotation_rad is None:
+            return None
+        return match_ports(ports, exits, rotation_rad, self.config.port_tolerance_rad)
+
+    def localize(
+        self,
+        query: ImageSet,
+        probes: ProbeSource | None = None,
+        exits_rad: Sequence[float] | None = None,
+        odometer_m: float | None = None,
+    ) -> Decision:
         """Decide known or new for one junction visit, and add the visit to the map.
 
         The image set stored for a new junction is the visit's own sweep (not a
         probe's), so every junction is remembered as seen from its centre.
+        ``exits_rad`` are the junction's pipes as the robot found them, relative to
+        its heading during the sweep (0 ahead, positive to the left); with them the
+        map gets ports. ``odometer_m`` (distance driven so far) gives edges a length.
         """
+        exits = None if exits_rad is None else tuple(float(e) for e in exits_rad)
         prepared = self._matcher.prepare(query)
         matches, best, sim, margin = self._best(prepared)
         match = matches[best] if best is not None else None
@@ -289,36 +350,64 @@ class Localizer:
         fit = None
         features = None
         stored = None
+        ports: PortMatch | None = None
+        rejected: list[tuple[int, str]] = []
         if self.config.two_view:
             stored = stored_features(matched, self.config.two_view_config)
             features = stored.features()
         if features is not None and self.config.verify and self._checkable(features):
-            verified = self._verified(features, matched_all)
+            verified = self._verified(features, matched_all, turn, exits, rejected)
             known = verified is not None
             if verified is not None:
-                best, raw_fit = verified
+                best, raw_fit, ports = verified
                 match = matched_all[best].turned(turn)
                 sim = match.similarity
                 fit = raw_fit.turned(turn)
         else:
-            known = best is not None and sim >= self.config.threshold
-            if known and features is not None:
-                assert best is not None
-                guess = matched_all[best].rotation_rad
-                config = self.config.two_view_config
-                raw = fit_two_view(features, self._features[best].features(), config, guess)
-                fit = None if raw is None else raw.turned(turn)
+            known = False
+            for i in self._above_threshold(matched_all, best, sim):
+                i_match = match if i == best else matched_all[i].turned(turn)
+                assert i_match is not None
+                i_fit = None
+                if features is not None:
+                    guess = matched_all[i].rotation_rad
+                    config = self.config.two_view_config
+                    raw = fit_two_view(features, self._features[i].features(), config, guess)
+                    i_fit = None if raw is None else raw.turned(turn)
+                rotation = i_fit.rotation_rad if i_fit is not None else i_match.rotation_rad
+                i_ports = self._ports_of(i, exits, rotation)
+                if i_ports is not None and not i_ports.agrees and self.config.port_check:
+                    rejected.append((i, i_ports.reason))
+                    continue
+                known, best, match, sim, fit, ports = (
+                    True,
+                    i,
+                    i_match,
+                    i_match.similarity,
+                    i_fit,
+                    i_ports,
+                )
+                break
+        new_ports = None
         if known:
             assert best is not None
             node = best
+            exit_ports = None if ports is None else ports.exit_ports
         else:
             node = self._matcher.add(prepared)
             if stored is not None:
                 if matched is not query:  # a probe's: remember the visit's own sweep
                     stored = stored_features(query, self.config.two_view_config)
                 self._features.append(stored)
-        self.map.visit(node)
-        return Decision(
+            exit_ports = None
+            if exits is not None:
+                new_ports, exit_ports = clockwise_ports(exits)
+        arrival = None
+        if exits is not None and exit_ports is not None and self.map.previous is not None:
+            behind = _nearest_exit(exits, math.pi, _DEPARTURE_TOLERANCE_RAD)
+            arrival = None if behind is None else exit_ports[behind]
+        self.map.visit(node, new_ports, arrival, odometer_m)
+        decision = Decision(
             node=node,
             known=known,
             candidate=best,
@@ -327,7 +416,66 @@ class Localizer:
             match=match,
             probes=tuple(outcomes),
             two_view=fit,
+            exits_rad=exits,
+            exit_ports=exit_ports,
+            arrival_port=arrival,
+            port_residual_rad=None if ports is None else ports.residual_rad,
+            rejected=tuple(rejected),
         )
+        self._last = decision
+        return decision
+
+    def _above_threshold(
+        self, matches: list[SetMatch], best: int | None, best_sim: float
+    ) -> list[int]:
+        """The paper's decision, with room for the port check: the best candidate if
+        its similarity reaches the threshold, then (only when exits are compared)
+        the other candidates of its pool that reach it too, best first, up to
+        ``verify_candidates`` in all."""
+        if best is None or best_sim < self.config.threshold:
+            return []
+        if not self.config.port_check:
+            return [best]
+        exclude = self._excluded()
+        allowed = [i for i in range(len(matches)) if i != exclude]
+        pool = [i for i in allowed if matches[i].refined] or allowed
+        others = sorted(
+            (i for i in pool if i != best and matches[i].similarity >= self.config.threshold),
+            key=lambda i: (-matches[i].similarity, i),
+        )
+        return [best, *others][: self.config.verify_candidates]
+
+    def expected_node(self) -> int | None:
+        """The junction the map says the robot is coming to: the far end of the edge
+        at the port it left its last junction by (``None`` when the map does not know:
+        an untraversed pipe, no ports, a traversal's first visit)."""
+        previous = self.map.previous
+        if previous is None:
+            return None
+        port = self.map.visit_records[-1].departure_port
+        edge = None if port is None else self.map.edge_at(previous, port)
+        return None if edge is None or port is None else edge.other(previous, port)[0]
+
+    def depart(self, exit_rad: float | None) -> int | None:
+        """Record that the robot leaves the junction of its last visit by the exit at
+        ``exit_rad`` (relative to its heading during the sweep): the exit nearest to
+        it, within half the smallest junction angle (a robot turning straight back
+        leaves at pi, its scan may have put that pipe a little off). Returns that
+        port, or ``None`` when it is not known (no exits, or none near)."""
+        last = self._last
+        port = None
+        if exit_rad is not None and last is not None and last.exits_rad is not None:
+            index = _nearest_exit(last.exits_rad, exit_rad, _DEPARTURE_TOLERANCE_RAD)
+            if index is not None and last.exit_ports is not None:
+                port = last.exit_ports[index]
+        self.map.depart(port)
+        return port
+
+    def new_traversal(self) -> None:
+        """The next visit does not follow the last (the robot starts a new run on this
+        map): no edge joins them, and the last junction is a candidate again."""
+        self.map.new_traversal()
+        self._last = None
 
     def _checkable(self, features: SweepFeatures) -> bool:
         """Enough keypoints for the two-view check to decide; with fewer (images of a
@@ -335,23 +483,42 @@ class Localizer:
         return len(features) >= self.config.verify_min_keypoints
 
     def _verified(
-        self, features: SweepFeatures, matches: list[SetMatch]
-    ) -> tuple[int, TwoViewFit] | None:
-        """The first of the best junctions (refined ones first, each by similarity)
-        that the sweep's keypoints fit, with that fit (unturned); ``None`` if none does."""
+        self,
+        features: SweepFeatures,
+        matches: list[SetMatch],
+        turn: float,
+        exits: tuple[float, ...] | None,
+        rejected: list[tuple[int, str]],
+    ) -> tuple[int, TwoViewFit, PortMatch | None] | None:
+        """The first of the junction the map expects (:meth:`expected_node`) and the
+        best junctions (refined ones first, each by similarity) that the sweep's
+        keypoints fit and whose ports the exits fit, with that fit (unturned) and the
+        ports; ``None`` if none does. Candidates whose keypoints fit but whose ports
+        do not go to ``rejected``."""
         exclude = self._excluded()
         # Refined junctions first, then screened ones: the two scores differ in scale.
         allowed = [i for i in range(len(matches)) if i != exclude]
         ranked = sorted(allowed, key=lambda i: (not matches[i].refined, -matches[i].similarity, i))
+        ranked = ranked[: self.config.verify_candidates]
+        # The junction the map says this pipe leads to goes first: the similarity may
+        # rank it low (a revisit from another pipe, seen from a little off the centre)
+        # while its keypoints fit with hundreds of inliers.
+        expected = self.expected_node()
+        if expected is not None and expected != exclude:
+            ranked = [expected, *(i for i in ranked if i != expected)]
         # A fit with fewer inliers would not count: let it stop as soon as it knows
         # (so only the junction that fits pays for the tilted refinement).
         config = replace(
             self.config.two_view_config,
             min_inliers=max(self.config.two_view_config.min_inliers, self.config.verify_inliers),
         )
-        for i in ranked[: self.config.verify_candidates]:
+        for i in ranked:
             known = self._features[i].features()
             fit = fit_two_view(features, known, config, matches[i].rotation_rad)
             if fit is not None and fit.inliers >= self.config.verify_inliers:
-                return i, fit
+                ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
+                if ports is not None and not ports.agrees and self.config.port_check:
+                    rejected.append((i, ports.reason))
+                    continue
+                return i, fit, ports
         return None

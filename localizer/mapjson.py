@@ -1,9 +1,12 @@
 """The map document: the topological map and its visits as deterministic JSON.
 
 One format for every producer (``pipemap map`` over image folders, and replays of
-logs): ``{"nodes": [{"id"}], "edges": [{"u", "v", "label"}], "visits": [{"set",
-"node", "known", "similarity", "margin", ...}]}``. Floats are rounded to 6 decimals
-so that the same input gives the same bytes on any machine.
+logs): ``{"nodes": [{"id", "ports": [{"port", "angle_rad"}]}], "edges": [{"u",
+"u_port", "v", "v_port", "label", "length_m"}], "visits": [{"set", "node", "known",
+"similarity", "margin", ..., "arrival_port", "departure_port"}]}``. A node's ports
+are empty, and the edges' ports ``null``, when the robot reported no exits. Floats
+are rounded to 6 decimals so that the same input gives the same bytes on any
+machine.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from pipemap.localizer.localizer import Decision
-from pipemap.localizer.topomap import TopoMap
+from pipemap.localizer.topomap import MapVisit, TopoMap
 
 __all__ = ["FLOAT_DECIMALS", "decision_record", "dumps_document", "map_document"]
 
@@ -28,9 +31,13 @@ def _round(value: float | None) -> float | None:
     return 0.0 if rounded == 0 else rounded  # no "-0.0"
 
 
-def decision_record(label: str, decision: Decision) -> dict[str, Any]:
-    """One visit of the map document."""
+def decision_record(
+    label: str, decision: Decision, visit: MapVisit | None = None
+) -> dict[str, Any]:
+    """One visit of the map document; ``visit`` (the map's record of it) adds the
+    port it left by and any conflict its arrival met."""
     match, fit = decision.match, decision.two_view
+    exits = decision.exits_rad
     return {
         "set": label,
         "node": decision.node,
@@ -53,13 +60,25 @@ def decision_record(label: str, decision: Decision) -> dict[str, Any]:
             }
             for p in decision.probes
         ],
+        "exits_rad": None if exits is None else [_round(e) for e in exits],
+        "exit_ports": None if decision.exit_ports is None else list(decision.exit_ports),
+        "arrival_port": decision.arrival_port,
+        "departure_port": None if visit is None else visit.departure_port,
+        "port_residual_rad": _round(decision.port_residual_rad),
+        "rejected": [{"candidate": c, "reason": r} for c, r in decision.rejected],
+        "conflict": None if visit is None else visit.conflict,
     }
 
 
 def map_document(topomap: TopoMap, visits: Sequence[tuple[str, Decision]]) -> dict[str, Any]:
-    """The whole document: the map, then each visit with its label and decision."""
+    """The whole document: the map, then each visit with its label and decision (in
+    the map's visit order, one decision per visit)."""
     doc = topomap.to_dict()
-    doc["visits"] = [decision_record(label, d) for label, d in visits]
+    records = topomap.visit_records
+    doc["visits"] = [
+        decision_record(label, d, records[i] if i < len(records) else None)
+        for i, (label, d) in enumerate(visits)
+    ]
     return doc
 
 

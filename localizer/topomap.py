@@ -1,16 +1,27 @@
-"""The topological map of the paper's Algorithm 4.
+"""The topological map of the paper's Algorithm 4, with ports.
 
 A node per junction, numbered 0, 1, 2, ... in first-visit order; an edge between
 two consecutively visited junctions, labelled 1, 2, 3, ... in the order the edges
-are first traversed. Traversing an edge again adds nothing. Two different pipes
-between the same pair of junctions are one edge: the map records adjacency. Two
-consecutive visits of one junction add a self-loop; the localizer makes them only
-under the paper's rule (``LocalizerConfig.distinct_consecutive`` off), since a pipe
-joins two different junctions.
+are first traversed. Traversing an edge again adds nothing.
+
+Nodes have *ports* when the robot reported the junction's pipes (see
+:mod:`localizer.ports`): their angles in the node's first-visit frame, port 0 the
+pipe behind the robot then, the rest clockwise. An edge then joins two ends, (node,
+port) and (node, port): the map says which pipe of a junction leads where, and two
+pipes between the same two junctions are two edges. A pipe end joins one other end
+only; a traversal that would join an end already joined elsewhere is a *conflict*
+(the map and the robot's path disagree: a false merge or a false new node
+somewhere). It is recorded on the visit and adds no edge: the map keeps the first.
+
+Without ports (image folders, older logs) an edge joins two junctions, as in the
+paper: the map records adjacency. Two consecutive visits of one junction add a
+self-loop; the localizer makes them only under the paper's rule
+(``LocalizerConfig.distinct_consecutive`` off), since a pipe joins two different
+junctions.
 
 When a visit is lost (its sweep was in a damaged part of a log), the robot's path
-is broken there: :meth:`TopoMap.lose_track` makes the next visit add no edge, since
-the junctions either side of the lost one need not be neighbours.
+is broken there: :meth:`TopoMap.new_traversal` makes the next visit add no edge,
+since the junctions either side of the lost one need not be neighbours.
 """
 
 from __future__ import annotations
@@ -22,91 +33,322 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["TopoMap", "MapEdge"]
+__all__ = ["MapEdge", "MapVisit", "TopoMap"]
+
+_DECIMALS = 6
+
+
+def _round(value: float | None) -> float | None:
+    if value is None:
+        return None
+    rounded = round(float(value), _DECIMALS)
+    return 0.0 if rounded == 0 else rounded  # no "-0.0"
 
 
 @dataclass(frozen=True)
 class MapEdge:
-    """An edge of the map: its two junctions (in first-traversal order) and label."""
+    """An edge of the map: its two junctions (in first-traversal order), its label,
+    the port at either end (``None`` when unknown) and the distance the robot drove
+    along it the first time (``None`` when unknown)."""
 
     u: int
     v: int
     label: int
+    u_port: int | None = None
+    v_port: int | None = None
+    length_m: float | None = None
+
+    def other(self, node: int, port: int | None) -> tuple[int, int | None]:
+        """The far end seen from ``(node, port)``."""
+        if (self.u, self.u_port) == (node, port):
+            return self.v, self.v_port
+        return self.u, self.u_port
+
+
+@dataclass(frozen=True)
+class MapVisit:
+    """One visit: its node, the port it arrived by and left by (``None`` when
+    unknown, or the run's first visit), and the conflict its arrival met, if any."""
+
+    node: int
+    arrival_port: int | None = None
+    departure_port: int | None = None
+    conflict: str | None = None
 
 
 class TopoMap:
-    """A growing topological map. :meth:`visit` is Algorithm 4's update step.
+    """A growing topological map. :meth:`visit` is Algorithm 4's update step;
+    :meth:`depart` says which port the robot left by.
 
     It keeps its own edge list; networkx (0.09 s to import) is loaded only when
     :attr:`graph` is asked for.
     """
 
     def __init__(self) -> None:
-        self._nodes = 0
-        self._edges: dict[frozenset[int], MapEdge] = {}
-        self._visits: list[int] = []
-        self._on_track = True
+        self._ports: list[tuple[float, ...] | None] = []
+        self._edges: dict[Any, MapEdge] = {}
+        self._ends: dict[tuple[int, int], MapEdge] = {}
+        self._traversed: set[tuple[int, int]] = set()
+        self._visits: list[MapVisit] = []
+        self._odometer: list[float | None] = []
+        #: Index in ``_visits`` where the current traversal began.
+        self._traversal_start = 0
+
+    # -- reading ---------------------------------------------------------------------
 
     @property
-    def graph(self) -> nx.Graph:
-        """A copy of the map as a networkx graph; edges carry ``label``."""
+    def graph(self) -> nx.MultiGraph:
+        """A copy of the map as a networkx multigraph: nodes carry ``ports`` (a string
+        of angles, GraphML has no lists), edges ``label``, ``u_port``, ``v_port`` and
+        ``length_m`` (absent when unknown)."""
         import networkx as nx
 
-        graph = nx.Graph()
-        graph.add_nodes_from(range(self._nodes))
+        graph = nx.MultiGraph()
+        for n in range(self.node_count):
+            ports = self._ports[n]
+            text = "" if ports is None else " ".join(f"{_round(a)}" for a in ports)
+            graph.add_node(n, ports=text)
         for e in self._edges.values():
-            graph.add_edge(e.u, e.v, label=e.label)
+            attrs: dict[str, Any] = {"label": e.label}
+            if e.u_port is not None:
+                attrs["u_port"] = e.u_port
+            if e.v_port is not None:
+                attrs["v_port"] = e.v_port
+            if e.length_m is not None:
+                attrs["length_m"] = _round(e.length_m)
+            graph.add_edge(e.u, e.v, key=e.label, **attrs)
         return graph
 
     @property
     def visits(self) -> tuple[int, ...]:
         """The node of every visit, in order."""
-        return tuple(self._visits)
+        return tuple(v.node for v in self._visits)
 
     @property
-    def previous(self) -> int | None:
-        """The junction the robot came from directly, if the path is unbroken."""
-        return self._visits[-1] if self._visits and self._on_track else None
-
-    def lose_track(self) -> None:
-        """A visit was lost: the next visit is not joined to the last one by an edge."""
-        self._on_track = False
+    def visit_records(self) -> tuple[MapVisit, ...]:
+        """Every visit with its ports, in order."""
+        return tuple(self._visits)
 
     @property
     def node_count(self) -> int:
         """Number of junctions in the map."""
-        return self._nodes
+        return len(self._ports)
 
-    def visit(self, node: int) -> MapEdge | None:
-        """Record that the robot is at ``node``; returns the edge it added, if any.
+    @property
+    def previous(self) -> int | None:
+        """The node of the last visit of the current traversal (``None`` at its start)."""
+        if len(self._visits) > self._traversal_start:
+            return self._visits[-1].node
+        return None
 
-        ``node`` must be a known node or the next new one (``node_count``).
-        """
-        if not 0 <= node <= self._nodes:
-            raise ValueError(f"node {node} is neither known nor the next new node")
-        if node == self._nodes:
-            self._nodes += 1
-        added = None
-        previous = self.previous
-        if previous is not None:
-            key = frozenset((previous, node))
-            if key not in self._edges:
-                added = MapEdge(previous, node, len(self._edges) + 1)
-                self._edges[key] = added
-        self._visits.append(node)
-        self._on_track = True
-        return added
+    def ports(self, node: int) -> tuple[float, ...] | None:
+        """The angles of ``node``'s ports in its first-visit frame (``None``: unknown)."""
+        return self._ports[node]
+
+    @property
+    def has_ports(self) -> bool:
+        """Every node has its ports (and there is at least one node)."""
+        return bool(self._ports) and all(p is not None for p in self._ports)
+
+    def untraversed(self, node: int) -> list[int]:
+        """The ports of ``node`` the robot has neither arrived nor left by, in order."""
+        ports = self._ports[node]
+        if ports is None:
+            return []
+        return [p for p in range(len(ports)) if (node, p) not in self._traversed]
+
+    def edge_at(self, node: int, port: int) -> MapEdge | None:
+        """The edge that joins port ``port`` of ``node``, if known."""
+        return self._ends.get((node, port))
 
     def edges(self) -> list[MapEdge]:
         """Edges in label order, each as first traversed."""
         return list(self._edges.values())
 
+    # -- growing ---------------------------------------------------------------------
+
+    def visit(
+        self,
+        node: int,
+        ports: tuple[float, ...] | None = None,
+        arrival_port: int | None = None,
+        odometer_m: float | None = None,
+    ) -> MapEdge | None:
+        """Record that the robot is at ``node``; returns the edge it added, if any.
+
+        ``node`` must be a known node or the next new one (``node_count``); a new
+        node takes ``ports`` (angles in this visit's frame, in port order).
+        ``arrival_port`` is the port the robot came in by; the edge joins it to the
+        port the previous visit left by. ``odometer_m`` (distance driven so far)
+        gives the edge its length.
+        """
+        if not 0 <= node <= self.node_count:
+            raise ValueError(f"node {node} is neither known nor the next new node")
+        if node == self.node_count:
+            self._ports.append(None if ports is None else tuple(ports))
+        known_ports = self._ports[node]
+        if arrival_port is not None and (
+            known_ports is None or not 0 <= arrival_port < len(known_ports)
+        ):
+            raise ValueError(f"node {node} has no port {arrival_port}")
+        added = None
+        conflict = None
+        previous = self.previous
+        if previous is not None:
+            last = self._visits[-1]
+            length = None
+            odometer_before = self._odometer[-1]
+            if odometer_m is not None and odometer_before is not None:
+                length = odometer_m - odometer_before
+            added, conflict = self._join(previous, last.departure_port, node, arrival_port, length)
+        if arrival_port is not None:
+            self._traversed.add((node, arrival_port))
+        self._visits.append(MapVisit(node, arrival_port, None, conflict))
+        self._odometer.append(odometer_m)
+        return added
+
+    def _join(
+        self, u: int, u_port: int | None, v: int, v_port: int | None, length: float | None
+    ) -> tuple[MapEdge | None, str | None]:
+        if u_port is None or v_port is None:
+            key: Any = ("nodes", frozenset((u, v)))
+            if key in self._edges:
+                return None, None
+            edge = MapEdge(u, v, len(self._edges) + 1, u_port, v_port, length)
+            self._edges[key] = edge
+            return edge, None
+        key = ("ends", frozenset(((u, u_port), (v, v_port))))
+        if key in self._edges:
+            return None, None
+        for here, there in (((u, u_port), (v, v_port)), ((v, v_port), (u, u_port))):
+            joined = self._ends.get(here)
+            if joined is not None:
+                far = joined.other(*here)
+                return None, (
+                    f"port {here[1]} of node {here[0]} already leads to port {far[1]} of "
+                    f"node {far[0]}, not to port {there[1]} of node {there[0]}"
+                )
+        edge = MapEdge(u, v, len(self._edges) + 1, u_port, v_port, length)
+        self._edges[key] = edge
+        self._ends[(u, u_port)] = edge
+        self._ends[(v, v_port)] = edge
+        return edge, None
+
+    def depart(self, port: int | None) -> None:
+        """Record that the robot leaves the current junction by ``port`` (``None``:
+        unknown)."""
+        if not self._visits:
+            raise ValueError("no visit to depart from")
+        last = self._visits[-1]
+        if port is not None:
+            known = self._ports[last.node]
+            if known is None or not 0 <= port < len(known):
+                raise ValueError(f"node {last.node} has no port {port}")
+            self._traversed.add((last.node, port))
+        self._visits[-1] = MapVisit(last.node, last.arrival_port, port, last.conflict)
+
+    def new_traversal(self) -> None:
+        """The next visit does not follow the last one (the robot was carried, or a
+        new run starts on this map): no edge joins them."""
+        self._traversal_start = len(self._visits)
+
+    # -- output ----------------------------------------------------------------------
+
     def to_dict(self) -> dict[str, Any]:
         """Nodes in id order and edges in label order, as plain JSON-ready data."""
         return {
-            "nodes": [{"id": n} for n in range(self._nodes)],
-            "edges": [{"u": e.u, "v": e.v, "label": e.label} for e in self.edges()],
+            "nodes": [
+                {
+                    "id": n,
+                    "ports": [
+                        {"port": p, "angle_rad": _round(a)} for p, a in enumerate(ports or ())
+                    ],
+                }
+                for n, ports in enumerate(self._ports)
+            ],
+            "edges": [
+                {
+                    "u": e.u,
+                    "u_port": e.u_port,
+                    "v": e.v,
+                    "v_port": e.v_port,
+                    "label": e.label,
+                    "length_m": _round(e.length_m),
+                }
+                for e in self.edges()
+            ],
         }
+
+    @classmethod
+    def from_dict(cls, doc: Any) -> TopoMap:
+        """The map of a map document's ``nodes`` and ``edges`` (its visits are not
+        read). Raises ``ValueError`` naming the first thing that is wrong."""
+        if not isinstance(doc, dict):
+            raise ValueError("not a map document (a JSON object with nodes and edges)")
+        nodes, edges = doc.get("nodes"), doc.get("edges")
+        if not isinstance(nodes, list) or not isinstance(edges, list):
+            raise ValueError("not a map document: no list of nodes and list of edges")
+        m = cls()
+        for i, node in enumerate(nodes):
+            if not isinstance(node, dict) or node.get("id") != i:
+                raise ValueError(f"node {i}: expected {{'id': {i}, ...}} in id order")
+            ports = node.get("ports", [])
+            if not isinstance(ports, list):
+                raise ValueError(f"node {i}: ports is not a list")
+            angles = []
+            for k, port in enumerate(ports):
+                angle = port.get("angle_rad") if isinstance(port, dict) else None
+                if (
+                    not isinstance(port, dict)
+                    or port.get("port") != k
+                    or not isinstance(angle, int | float)
+                    or isinstance(angle, bool)
+                    or not -4.0 < angle < 4.0
+                ):
+                    raise ValueError(f"node {i}: port {k} is not {{'port': {k}, 'angle_rad': A}}")
+                angles.append(float(angle))
+            m._ports.append(tuple(angles) if angles else None)
+        for k, edge in enumerate(edges):
+            m._load_edge(k, edge)
+        return m
+
+    def _load_edge(self, k: int, edge: Any) -> None:
+        if not isinstance(edge, dict):
+            raise ValueError(f"edge {k}: not an object")
+        ends = []
+        for end in ("u", "v"):
+            node, port = edge.get(end), edge.get(f"{end}_port")
+            if not isinstance(node, int) or isinstance(node, bool):
+                raise ValueError(f"edge {k}: {end} is not a node id")
+            if not 0 <= node < self.node_count:
+                raise ValueError(f"edge {k}: names node {node}, which the map does not have")
+            if port is not None:
+                ports = self._ports[node]
+                if not isinstance(port, int) or ports is None or not 0 <= port < len(ports):
+                    raise ValueError(f"edge {k}: node {node} has no port {port!r}")
+            ends.append((node, port))
+        label = edge.get("label")
+        if not isinstance(label, int) or isinstance(label, bool):
+            raise ValueError(f"edge {k}: label is not an integer")
+        length = edge.get("length_m")
+        if length is not None and (not isinstance(length, int | float) or length < 0):
+            raise ValueError(f"edge {k}: length_m is not a distance")
+        (u, u_port), (v, v_port) = ends
+        added = MapEdge(u, v, label, u_port, v_port, None if length is None else float(length))
+        if u_port is None or v_port is None:
+            key: Any = ("nodes", frozenset((u, v)))
+        else:
+            key = ("ends", frozenset(((u, u_port), (v, v_port))))
+            for joined in ((u, u_port), (v, v_port)):
+                if joined in self._ends:
+                    raise ValueError(
+                        f"edge {k}: port {joined[1]} of node {joined[0]} is joined twice"
+                    )
+            self._ends[(u, u_port)] = added
+            self._ends[(v, v_port)] = added
+        if key in self._edges:
+            raise ValueError(f"edge {k}: joins the same ends as edge {self._edges[key].label}")
+        self._edges[key] = added
 
     def to_json(self) -> str:
         """Deterministic JSON of :meth:`to_dict`: the same map gives the same bytes."""

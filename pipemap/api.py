@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pipemap.errors import InputError
-from pipemap.imagesets import load_image_set, load_image_sets
+from pipemap.imagesets import load_image_set, load_image_sets, read_robot_notes
 from pipemap.localizer import (
     ImageSet,
     Localizer,
@@ -154,13 +154,22 @@ def map_image_sets(
 
     Returns the document ``pipemap map --json`` prints: ``nodes``, ``edges`` and
     one ``visits`` entry per folder, in order. ``fov_rad`` and ``keep_top_fraction``
-    default to the camera of the paper (80 degrees, the top half of each image).
+    default to the camera of the paper (80 degrees, the top half of each image). A
+    folder's ``sweep.txt`` with the robot's exits (``pipemap sim --save-sweeps``
+    writes them) gives the map ports.
     """
     if not folders:
         raise InputError("no image-set folders given")
     sets = load_image_sets([str(f) for f in folders], fov_rad, keep_top_fraction)
     localizer = Localizer(config)
-    visits = [(str(name), localizer.localize(s)) for name, s in zip(folders, sets, strict=True)]
+    visits = []
+    for name, image_set in zip(folders, sets, strict=True):
+        # The robot's notes of an autonomous run's sweep (``sweep.txt``) give ports.
+        notes = read_robot_notes(name)
+        decision = localizer.localize(image_set, None, notes.exits_rad, notes.odometer_m)
+        visits.append((str(name), decision))
+        if notes.departure_rad is not None:
+            localizer.depart(notes.departure_rad)
     return map_document(localizer.map, visits)
 
 

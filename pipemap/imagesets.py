@@ -7,7 +7,10 @@ error it raises.
 ``info.txt`` holds ground truth (the camera pose, the true node) and is never read
 into an image set. What the robot itself knows about a sweep goes in an optional
 ``sweep.txt``: ``camera_angle: A``, the camera's angle at the first image relative
-to the robot's heading in radians (0, straight ahead, when the file is absent).
+to the robot's heading in radians (0, straight ahead, when the file is absent); and,
+from an autonomous run, ``exits: A,B,...`` (the pipes the exit scan found, relative
+to the robot's heading), ``departure: A`` (the pipe it left by) and
+``odometer_m: D`` (the distance it had driven), which give the map its ports.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -24,7 +28,15 @@ from pipemap.errors import InputError
 from pipemap.localizer import ImageSet
 from pipemap.pngcheck import PNG_SIGNATURE, png_problem
 
-__all__ = ["IMAGE_SUFFIXES", "load_image_set", "load_image_sets", "read_info", "write_image_set"]
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "RobotNotes",
+    "load_image_set",
+    "load_image_sets",
+    "read_info",
+    "read_robot_notes",
+    "write_image_set",
+]
 
 #: Image formats accepted in a set folder (those OpenCV decodes everywhere).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
@@ -99,20 +111,51 @@ def load_image_set(
     return ImageSet(np.stack(images), **kwargs)
 
 
+def _number(path: Path, key: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"{path}: {key} {text!r} is not a number") from None
+    if not math.isfinite(value):
+        raise InputError(f"{path}: {key} {text!r} is not finite")
+    return value
+
+
 def _camera_angle(folder: Path) -> float:
     """``camera_angle`` from the folder's ``sweep.txt``; 0.0 without one."""
     path = folder / "sweep.txt"
     if not path.is_file():
         return 0.0
+    return _number(path, "camera_angle", _key_values(path).get("camera_angle", "0"))
+
+
+@dataclass(frozen=True)
+class RobotNotes:
+    """What the robot noted at a sweep besides its images (from ``sweep.txt``)."""
+
+    exits_rad: tuple[float, ...] | None = None
+    departure_rad: float | None = None
+    odometer_m: float | None = None
+
+
+def read_robot_notes(folder: str | Path) -> RobotNotes:
+    """The exits, departure and odometer of a set's ``sweep.txt`` (each ``None`` when
+    absent)."""
+    path = Path(folder) / "sweep.txt"
+    if not path.is_file():
+        return RobotNotes()
     values = _key_values(path)
-    text = values.get("camera_angle", "0")
-    try:
-        angle = float(text)
-    except ValueError:
-        raise InputError(f"{path}: camera_angle {text!r} is not a number") from None
-    if not math.isfinite(angle):
-        raise InputError(f"{path}: camera_angle {text!r} is not finite")
-    return angle
+    exits = None
+    if "exits" in values:
+        text = values["exits"]
+        exits = tuple(_number(path, "exits", t.strip()) for t in text.split(",") if t.strip())
+    departure = values.get("departure")
+    odometer = values.get("odometer_m")
+    return RobotNotes(
+        exits,
+        None if departure is None else _number(path, "departure", departure),
+        None if odometer is None else _number(path, "odometer_m", odometer),
+    )
 
 
 def _key_values(path: Path) -> dict[str, str]:
@@ -153,13 +196,17 @@ def read_info(folder: str | Path) -> dict[str, str]:
 
 
 def write_image_set(
-    folder: str | Path, images: np.ndarray, info: dict[str, str], camera_angle_rad: float = 0.0
+    folder: str | Path,
+    images: np.ndarray,
+    info: dict[str, str],
+    camera_angle_rad: float = 0.0,
+    notes: RobotNotes | None = None,
 ) -> None:
     """Write one sweep in the paper's layout: ``camera_image1..N.png`` and ``info.txt``.
 
     ``images`` is (N, H, W, 3) RGB or (N, H, W) gray, uint8. ``info`` lines are written
-    as ``key: value`` in the given order. A non-zero camera angle at the first image
-    goes to ``sweep.txt``. The folder must not exist yet.
+    as ``key: value`` in the given order. A non-zero camera angle at the first image,
+    and the robot's ``notes``, go to ``sweep.txt``. The folder must not exist yet.
     """
     path = Path(folder)
     path.mkdir(parents=True, exist_ok=False)
@@ -169,6 +216,14 @@ def write_image_set(
             raise InputError(f"{path}: cannot write camera_image{i}.png")
     lines = [f"{key}: {value}" for key, value in info.items()]
     (path / "info.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    lines = []
     if camera_angle_rad != 0.0:
-        text = f"camera_angle: {camera_angle_rad!r}\n"
-        (path / "sweep.txt").write_text(text, encoding="utf-8")
+        lines.append(f"camera_angle: {camera_angle_rad!r}")
+    if notes is not None and notes.exits_rad is not None:
+        lines.append(f"exits: {','.join(repr(float(e)) for e in notes.exits_rad)}")
+    if notes is not None and notes.departure_rad is not None:
+        lines.append(f"departure: {float(notes.departure_rad)!r}")
+    if notes is not None and notes.odometer_m is not None:
+        lines.append(f"odometer_m: {float(notes.odometer_m)!r}")
+    if lines:
+        (path / "sweep.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")

@@ -21,6 +21,7 @@ from pipemap.recorder.reader import (
 from pipemap.recorder.topics import FORMAT_VERSION, METADATA_RESULT, METADATA_RUN, TOPICS, Topic
 
 if TYPE_CHECKING:
+    from pipemap.recorder.online import Explore, MapPolicy, OnlineLocalizer
     from pipemap.recorder.session import (
         Progress,
         RecordResult,
@@ -33,6 +34,9 @@ if TYPE_CHECKING:
 #: Loaded on first use (PEP 562): recording pulls in the simulator, which a command
 #: that only reads logs should not pay for (0.1 s).
 _LAZY = {
+    "Explore": "pipemap.recorder.online",
+    "MapPolicy": "pipemap.recorder.online",
+    "OnlineLocalizer": "pipemap.recorder.online",
     "Progress": "pipemap.recorder.session",
     "RecordResult": "pipemap.recorder.session",
     "RecordSettings": "pipemap.recorder.session",
@@ -58,11 +62,14 @@ __all__ = [
     "METADATA_RUN",
     "TOPICS",
     "Damage",
+    "Explore",
     "Integrity",
     "LogChannel",
     "LogContents",
     "LogMessage",
     "LogWriter",
+    "MapPolicy",
+    "OnlineLocalizer",
     "Progress",
     "RecordResult",
     "RecordSettings",

@@ -9,17 +9,17 @@ the truth of each sweep under ``/truth``. The online decisions arrive already ma
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from pipemap.recorder import messages, schemas
 from pipemap.recorder.topics import Topic
-from pipemap.recorder.writer import LogWriter
 from pipemap.sim.episode import Pose
 from pipemap.sim.robot import EncoderReading, ImuReading, RangeReading, RobotSpec
 from pipemap.sim.stream import (
     ControlStep,
     NodeArrival,
     NodeDeparture,
+    NodeExits,
     Note,
     SimRecord,
     SweepImage,
@@ -27,7 +27,20 @@ from pipemap.sim.stream import (
     TruePose,
 )
 
-__all__ = ["LogRecord", "ReadyMessage", "RecordConverter", "SweepDone"]
+__all__ = ["LogRecord", "MessageSink", "ReadyMessage", "RecordConverter", "SweepDone"]
+
+
+class MessageSink(Protocol):
+    """Where converted messages go: the log writer, or a live view's collector."""
+
+    def write(self, topic: str, log_time_ns: int, message: Any) -> None:
+        """Serialize ``message`` and add it on ``topic`` at ``log_time_ns``."""
+
+    def write_serialized(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """Add already serialized ``data`` on ``topic`` at ``log_time_ns``."""
+
+    def flush(self) -> None:
+        """Hand on what was added so far."""
 
 
 @dataclass(frozen=True)
@@ -61,9 +74,9 @@ LogRecord = SimRecord | SweepDone | ReadyMessage
 
 
 class RecordConverter:
-    """Writes each record's messages to a :class:`LogWriter`."""
+    """Writes each record's messages to a :class:`MessageSink` (the log writer)."""
 
-    def __init__(self, writer: LogWriter, spec: RobotSpec | None = None) -> None:
+    def __init__(self, writer: MessageSink, spec: RobotSpec | None = None) -> None:
         self.writer = writer
         self.spec = spec if spec is not None else RobotSpec()
 
@@ -148,6 +161,20 @@ class RecordConverter:
                 t,
                 schemas.NodeEvent(
                     time_ns=t, kind=schemas.NodeEvent.ARRIVAL, visit_id=record.visit_id
+                ),
+            )
+        elif isinstance(record, NodeExits):
+            w.write(
+                Topic.NODE,
+                t,
+                schemas.NodeEvent(
+                    time_ns=t,
+                    kind=schemas.NodeEvent.EXITS,
+                    visit_id=record.visit_id,
+                    exits_rad=list(record.exits_rad),
+                    x_estimate_m=record.x_m,
+                    y_estimate_m=record.y_m,
+                    odometer_m=record.odometer_m,
                 ),
             )
         elif isinstance(record, NodeDeparture):

@@ -176,4 +176,9 @@ def decision_message(
         result = message.probes.add(kind=probe.request.kind.value, improved=probe.improved)
         if probe.similarity is not None:
             result.similarity = probe.similarity
+    if decision.exit_ports is not None:
+        message.exit_ports.extend(decision.exit_ports)
+    if decision.arrival_port is not None:
+        message.arrival_port = decision.arrival_port
+    message.rejected.extend(c for c, _ in decision.rejected)
     return message

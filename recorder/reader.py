@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 from pipemap.errors import LogFormatError
 from pipemap.recorder.mcapfile import Lost, McapHeaderError, Scan, scan
-from pipemap.recorder.topics import FORMAT_VERSION, METADATA_RUN, TOPICS
+from pipemap.recorder.topics import METADATA_RUN, READABLE_VERSIONS, TOPICS
 
 __all__ = [
     "Damage",
@@ -259,11 +259,12 @@ def _recognise(contents: LogContents, found: Scan, path: Path) -> None:
             f"{path}: not a pipemap log: no {METADATA_RUN} metadata (an MCAP file {writer})"
         )
     version = run.get("format_version")
-    if version != FORMAT_VERSION:
+    if version not in READABLE_VERSIONS:
         got = "none" if version is None else repr(version)
+        readable = " and ".join(repr(v) for v in READABLE_VERSIONS)
         raise LogFormatError(
             f"{path}: log format version {got} in {METADATA_RUN}; this pipemap reads "
-            f"version {FORMAT_VERSION!r}"
+            f"versions {readable}"
         )
     for channel_id, (topic, schema_id, encoding) in found.channels.items():
         expected = _TYPE_OF_TOPIC.get(topic)

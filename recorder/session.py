@@ -28,14 +28,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import cv2
-import numpy as np
-
 from pipemap.errors import InputError
-from pipemap.localizer import DEFAULT_THRESHOLD, ImageSet, Localizer, LocalizerConfig, ProbeRequest
+from pipemap.localizer import (
+    DEFAULT_THRESHOLD,
+    Decision,
+    ImageSet,
+    Localizer,
+    LocalizerConfig,
+    ProbeRequest,
+)
 from pipemap.recorder import messages
 from pipemap.recorder.background import BackgroundWriter
 from pipemap.recorder.convert import LogRecord, ReadyMessage, SweepDone
+from pipemap.recorder.online import Explore, NoProbes, OnlineLocalizer, gray_set, make_policy
 from pipemap.recorder.topics import FORMAT_VERSION, Topic
 from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
 from pipemap.sim.episode import Condition, Episode, SimConfig, Sweep, Visit
@@ -44,6 +49,7 @@ from pipemap.sim.robot import PlanarPose, RobotSpec
 from pipemap.sim.stream import (
     NodeArrival,
     NodeDeparture,
+    NodeExits,
     SimRecord,
     SweepEnd,
     SweepImage,
@@ -73,6 +79,8 @@ class RecordSettings:
     images_per_sweep: int = 6
     align_sweeps: bool = True
     threshold: float = DEFAULT_THRESHOLD
+    #: How the autonomous robot chooses exits (placed tours follow the paper's rule).
+    explore: Explore = Explore.MAP
 
     def camera(self) -> CameraSpec:
         """The camera of the run."""
@@ -103,6 +111,9 @@ class RecordSettings:
             "fov_rad": repr(camera.fov_rad),
             "align_sweeps": "true" if self.align_sweeps else "false",
             "threshold": repr(self.threshold),
+            "explore": self.explore.value
+            if self.condition is Condition.AUTONOMOUS
+            else Explore.RIGHT_HAND.value,
             "simulator": json.dumps(simulator, sort_keys=True, default=_json_value),
         }
 
@@ -148,9 +159,11 @@ RunObserver = Callable[[Sequence[LogRecord]], None]
 class RecordResult:
     """How a recording ended and what it holds.
 
-    ``status`` is the robot's (``finished``, a watchdog's reason, or ``complete`` /
-    ``incomplete`` for a placed tour). ``true_nodes`` is the set of nodes whose
-    sweeps the log holds, from the simulator's truth, for the summary only.
+    ``status`` is the robot's (``finished``, ``map inconsistent``, a watchdog's
+    reason, or ``complete`` / ``incomplete`` for a placed tour). ``true_nodes`` is
+    the set of nodes whose sweeps the log holds and ``pipes_driven`` the number of
+    pipes between two consecutive ones, from the simulator's truth, for the summary
+    only. ``ok``: the run finished and covered every node and pipe.
     """
 
     status: str
@@ -162,23 +175,13 @@ class RecordResult:
     messages: int
     true_nodes: frozenset[str]
     node_count: int
-
-
-def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float) -> ImageSet:
-    gray = np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images])
-    return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
-
-
-class _NoProbes:
-    """A robot that cannot make probe moves: every request is answered ``None``."""
-
-    def probe(self, request: ProbeRequest) -> ImageSet | None:
-        return None
+    pipes_driven: int = 0
+    pipe_count: int = 0
 
 
 class _OnlineSink:
-    """Sends each simulator record to the writer and runs the online localizer on every
-    visit's sweep (not on probe sweeps)."""
+    """Sends each simulator record to the writer and to the online localizer, which
+    decides each visit (not probe sweeps) once its exits are in; logs each decision."""
 
     def __init__(
         self,
@@ -189,47 +192,55 @@ class _OnlineSink:
         observer: RunObserver | None = None,
     ) -> None:
         self.writer = writer
-        self.localizer = localizer
         self.camera = camera
         self.progress = progress
         self.observer = observer
         self.observed: list[LogRecord] = []
-        self.probes: Any = _NoProbes()  # set per visit by the placement runner
+        self.online = OnlineLocalizer(localizer, camera.fov_rad, self._log_decision)
         self.sweeps = 0
         self.visits = 0
         self.true_nodes: set[str] = set()
+        self.true_path: list[str] = []
         self.now_ns = 0
+
+    @property
+    def localizer(self) -> Localizer:
+        """The online localizer."""
+        return self.online.localizer
+
+    def _log_decision(self, visit_id: int, decision: Decision) -> None:
+        threshold = self.localizer.config.threshold
+        message = messages.decision_message(self.now_ns, visit_id, decision, threshold)
+        self.put(ReadyMessage.of(self.now_ns, Topic.DECISION, message))
 
     def __call__(self, record: SimRecord) -> None:
         self.now_ns = max(self.now_ns, record.t_ns)
         if isinstance(record, NodeArrival):
             self.visits += 1
-        if not isinstance(record, SweepEnd):
+        if isinstance(record, SweepEnd):
+            sweep = record.sweep
+            self.put(
+                SweepDone(
+                    record.t_ns,
+                    record.sweep_id,
+                    record.visit_id,
+                    len(sweep.images),
+                    sweep.start_pose,
+                    sweep.true_node,
+                )
+            )
+            self.sweeps += 1
+            if sweep.probe is None:
+                self.true_nodes.add(sweep.true_node)
+                self.true_path.append(sweep.true_node)
+        else:
             self.put(record)
-            return
-        sweep = record.sweep
-        self.put(
-            SweepDone(
-                record.t_ns,
-                record.sweep_id,
-                record.visit_id,
-                len(sweep.images),
-                sweep.start_pose,
-                sweep.true_node,
-            )
-        )
-        self.sweeps += 1
-        if sweep.probe is None:
-            self.true_nodes.add(sweep.true_node)
-            decision = self.localizer.localize(self._seen(sweep), self.probes)
-            message = messages.decision_message(
-                self.now_ns, record.visit_id, decision, self.localizer.config.threshold
-            )
-            self.put(ReadyMessage.of(self.now_ns, Topic.DECISION, message))
-        self.writer.send()
-        if self.progress is not None:
-            self.progress(Progress(self.now_ns, self.sweeps, self.visits))
-        self.show()
+        self.online(record)
+        if isinstance(record, SweepEnd | NodeExits):
+            self.writer.send()
+            if self.progress is not None:
+                self.progress(Progress(self.now_ns, self.sweeps, self.visits))
+            self.show()
 
     def put(self, record: LogRecord) -> None:
         """Queue ``record`` for the log, and for the observer if there is one."""
@@ -243,9 +254,11 @@ class _OnlineSink:
             batch, self.observed = self.observed, []
             self.observer(batch)
 
-    def _seen(self, sweep: Sweep) -> ImageSet:
-        """The image set as a replay will see it (the log's PNG images are lossless)."""
-        return _gray_set(sweep.images, self.camera.fov_rad, sweep.camera_angle_rad)
+    def finish(self) -> None:
+        """Decide any sweep whose exits never came, and send what is left."""
+        self.online.finish()
+        self.writer.send()
+        self.show()
 
 
 class _PlacedProbes:
@@ -259,7 +272,7 @@ class _PlacedProbes:
         self.runner.clock_ns += _PROBE_MOVE_NS
         probe = (request.kind.value, request.yaw_rad, request.forward_m, request.left_m)
         self.runner.emit_sweep(sweep, self.visit_id, probe)
-        return self.sink._seen(sweep)
+        return gray_set(sweep.images, self.sink.camera.fov_rad, sweep.camera_angle_rad)
 
 
 class _PlacedRun:
@@ -305,18 +318,34 @@ class _PlacedRun:
                 self.clock_ns += round(length / _CRUISE_MPS * _NS_PER_S)
             self.sink(NodeArrival(self.clock_ns, visit_id))
             if self.settings.condition is Condition.ACTIVE:
-                self.sink.probes = _PlacedProbes(self.sink, visit, visit_id, self)
+                self.sink.online.probes = _PlacedProbes(self.sink, visit, visit_id, self)
             else:
-                self.sink.probes = _NoProbes()
+                self.sink.online.probes = NoProbes()
             self.emit_sweep(visit.sweep, visit_id, None)
+            # Placed by hand, the robot makes no exit scan: its exits are the
+            # junction's pipes as placed (exact), as its exit count always was.
+            headings = network.pipe_headings(visit.node)
+            exits = tuple(
+                math.remainder(headings[n] - visit.pose.yaw_rad, 2.0 * math.pi)
+                for n in network.neighbours(visit.node)
+            )
+            here = visit.pose
+            self.sink(
+                NodeExits(self.clock_ns, visit_id, exits, here.x_m, here.y_m, self.distance_m)
+            )
             leave = episode.tour.visits[visit.index].leave_to
             if leave is not None:
-                heading = network.pipe_headings(visit.node)[leave]
-                turn = math.remainder(heading - visit.pose.yaw_rad, 2.0 * math.pi)
-                exits = network.degree(visit.node)
-                self.sink(NodeDeparture(self.clock_ns, visit_id, exits, turn))
+                turn = math.remainder(headings[leave] - visit.pose.yaw_rad, 2.0 * math.pi)
+                exits_count = network.degree(visit.node)
+                self.sink(NodeDeparture(self.clock_ns, visit_id, exits_count, turn))
             previous = visit.node
         return "complete" if episode.tour.complete else "incomplete"
+
+
+def _pipes_driven(network: Network, path: list[str]) -> int:
+    """How many of the network's pipes join two consecutive nodes of ``path``."""
+    pipes = {frozenset((p.a, p.b)) for p in network.pipes}
+    return len({frozenset(ab) for ab in zip(path, path[1:], strict=False)} & pipes)
 
 
 def record_run(
@@ -346,25 +375,31 @@ def record_run(
         with World(network, seed=settings.seed) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
+                explorer = settings._explorer()
+                policy = make_policy(
+                    settings.explore, sink.online, explorer.start_radius_m, explorer.drift_per_m
+                )
                 result = autonomous_run(
                     world,
                     camera,
                     settings.seed,
                     start=settings.start,
-                    config=settings._explorer(),
+                    config=explorer,
                     sink=sink,
+                    policy=policy,
                 )
                 status = result.status.value
                 distance, duration = result.distance_m, result.duration_ns
                 # The robot believes it is done; the truth says whether it covered all.
                 covered = sink.true_nodes - {"?"} == set(network.labels)
+                covered = covered and _pipes_driven(network, sink.true_path) == len(network.pipes)
                 ok = result.status is RunStatus.FINISHED and covered
             else:
                 placed = _PlacedRun(world, settings, sink)
                 status = placed.run()
                 distance, duration = placed.distance_m, placed.clock_ns
                 ok = status == "complete"
-        sink.show()  # what came after the last sweep
+            sink.finish()
         count = writer.finish(
             {
                 "status": status,
@@ -383,5 +418,7 @@ def record_run(
         duration_ns=duration,
         messages=count,
         true_nodes=frozenset(sink.true_nodes - {"?"}),
+        pipes_driven=_pipes_driven(network, sink.true_path),
+        pipe_count=len(network.pipes),
         node_count=len(network.nodes),
     )

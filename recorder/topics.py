@@ -23,8 +23,12 @@ __all__ = [
     "Topic",
 ]
 
-#: Bumped whenever a topic, a message or a metadata key changes meaning.
-FORMAT_VERSION = "1"
+#: Bumped whenever a topic, a message or a metadata key changes meaning. 2: the
+#: exit scan of each visit (``/robot/node`` EXITS), the ports of each online
+#: decision, and the ``explore`` policy in the run metadata.
+FORMAT_VERSION = "2"
+#: Every format this pipemap reads: format 1 logs replay as before, without ports.
+READABLE_VERSIONS = ("1", "2")
 #: The MCAP header's profile and library: how ``pipemap info`` tells its own logs.
 PROFILE = ""
 LIBRARY = "pipemap"

@@ -30,7 +30,13 @@ from pipemap.localizer import Localizer, LocalizerConfig
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.convert import LogRecord, RecordConverter
 from pipemap.recorder.topics import ROBOT_PREFIX
-from pipemap.replay.replayer import LoggedSweep, VisitDecision, answer_probes, sweeps_of
+from pipemap.replay.replayer import (
+    LoggedSweep,
+    VisitDecision,
+    answer_probes,
+    node_events_of,
+    sweeps_of,
+)
 from pipemap.replay.source import ordered
 from pipemap.replay.view import MapLog, recording
 from pipemap.replay.view_blueprint import view_blueprint
@@ -91,6 +97,8 @@ class LiveView:
         self._localizer = Localizer(config)
         self._waiting: list[LoggedSweep] = []  # visits' sweeps the run has not decided yet
         self._probes: dict[int, list[LoggedSweep]] = defaultdict(list)
+        self._node_events: list[LogMessage] = []  # exit scans and departures so far
+        self._last_visit: int | None = None  # decided, its departure not yet applied
         self._sweeps = self._images = self._visits = 0
         self._closed = False
 
@@ -120,6 +128,8 @@ class LiveView:
             by_topic[m.topic].append(m)
             if m.topic.startswith(ROBOT_PREFIX):
                 robot.append(m)
+            if m.topic == Topic.NODE:
+                self._node_events.append(m)
         log_robot(self.rec, by_topic, self._geometry)
         log_truth(self.rec, by_topic, self._trail)
         sweeps = sweeps_of(robot, "live run").sweeps
@@ -135,13 +145,32 @@ class LiveView:
             self._decide()
 
     def _decide(self) -> None:
+        # As the replay does: each visit with its exit scan, and the departure from
+        # the visit before it (logged after that visit's decision) applied first.
+        events = node_events_of(self._node_events)
         for sweep in self._waiting:
+            last = None if self._last_visit is None else events.get(self._last_visit)
+            if last is not None and last.departure_rad is not None:
+                self._localizer.depart(last.departure_rad)
+                self._map.depart(self._localizer.map.visit_records[-1].departure_port)
+            scan = events.get(sweep.visit_id)
             probes = self._probes.pop(sweep.visit_id, [])
-            decision, missing = answer_probes(self._localizer, sweep.images, probes)
+            decision, missing = answer_probes(
+                self._localizer,
+                sweep.images,
+                probes,
+                None if scan is None else scan.exits_rad,
+                None if scan is None else scan.odometer_m,
+            )
             self._map.add(
-                VisitDecision(sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, 0.0, missing)
+                VisitDecision(
+                    sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, 0.0, missing, scan
+                ),
+                self._localizer.map.ports(decision.node),
+                decision.arrival_port,
             )
             self._visits += 1
+            self._last_visit = sweep.visit_id
         self._waiting = []
 
     def close(self) -> LiveSummary:

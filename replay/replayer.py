@@ -4,8 +4,10 @@ The sweeps are put together from the camera's commands and images; every visit's
 sweep goes to the localizer in the order the robot took them. When the localizer
 asks for an active-vision probe, the probe sweeps the log holds for that visit
 answer it, matched by kind and move; a probe the log does not hold is answered
-``None``, and the decision records it as missing. The same log and settings give
-the same map, byte for byte.
+``None``, and the decision records it as missing. Each visit's exit scan
+(``/robot/node`` EXITS) goes with its sweep, and its departure tells the map which
+port the robot left by, as online. Logs of format 1 have no exit scans: their maps
+have no ports. The same log and settings give the same map, byte for byte.
 
 What cannot be read is lost alone: a sweep with an image missing, undecodable or
 not a readable PNG is skipped with a warning, and the replay goes on. Where a visit
@@ -37,15 +39,17 @@ from pipemap.localizer import (
 )
 from pipemap.recorder import Integrity, LogMessage, Topic
 from pipemap.recorder.messages import decode_png
-from pipemap.recorder.schemas import CompressedImage, SweepCommand
+from pipemap.recorder.schemas import CompressedImage, NodeEvent, SweepCommand
 from pipemap.replay.source import MessageSource
 
 __all__ = [
+    "LoggedExits",
     "LoggedSweep",
     "ReplayResult",
     "Sweeps",
     "VisitDecision",
     "answer_probes",
+    "node_events_of",
     "replay",
     "sweeps_of",
     "visit_label",
@@ -68,6 +72,19 @@ class LoggedSweep:
 
 
 @dataclass(frozen=True)
+class LoggedExits:
+    """A visit's exit scan and where the robot left by, as the log holds them."""
+
+    visit_id: int
+    exits_rad: tuple[float, ...] | None = None
+    x_m: float = 0.0
+    y_m: float = 0.0
+    odometer_m: float | None = None
+    #: The pipe taken, relative to the arrival heading; ``None``: no departure.
+    departure_rad: float | None = None
+
+
+@dataclass(frozen=True)
 class VisitDecision:
     """The replay's decision for one node visit."""
 
@@ -79,6 +96,8 @@ class VisitDecision:
     latency_s: float
     #: Probes the localizer asked for that the log does not hold.
     probes_not_in_log: int
+    #: The visit's exit scan and departure (robot data), if the log has them.
+    exits: LoggedExits | None = None
 
 
 @dataclass
@@ -98,6 +117,9 @@ class ReplayResult:
     visit_sets: dict[int, ImageSet] = field(default_factory=dict)
     #: Positions in ``visits`` before which the path is broken (a visit was lost).
     breaks: tuple[int, ...] = ()
+    #: The localizer after the replay: its map and its junctions' sweeps, ready to
+    #: go on (to drive a route on the same map, say).
+    localizer: Localizer | None = None
 
     def document(self) -> dict[str, Any]:
         """The map document, in the format of ``pipemap map --json``."""
@@ -227,6 +249,45 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
     return out
 
 
+def node_events_of(
+    messages: list[LogMessage], warnings: list[str] | None = None, name: str = "log"
+) -> dict[int, LoggedExits]:
+    """Each visit's exit scan and departure from ordered ``/robot`` messages. Node
+    events that do not decode are skipped, with a line in ``warnings``."""
+    scans: dict[int, NodeEvent] = {}
+    departures: dict[int, float] = {}
+    undecodable = 0
+    for m in messages:
+        if m.topic != Topic.NODE:
+            continue
+        try:
+            event = NodeEvent.FromString(m.data)
+        except DecodeError:
+            undecodable += 1
+            continue
+        if event.kind == NodeEvent.EXITS:
+            scans.setdefault(event.visit_id, event)
+        elif event.kind == NodeEvent.DEPARTURE:
+            departures.setdefault(event.visit_id, event.exit_rad)
+    if undecodable and warnings is not None:
+        warnings.append(
+            f"{name}: {undecodable} node event(s) do not decode as pipemap.NodeEvent; "
+            "their visits' exits are lost"
+        )
+    out: dict[int, LoggedExits] = {}
+    for visit_id in sorted(set(scans) | set(departures)):
+        scan = scans.get(visit_id)
+        out[visit_id] = LoggedExits(
+            visit_id,
+            None if scan is None else tuple(scan.exits_rad),
+            0.0 if scan is None else scan.x_estimate_m,
+            0.0 if scan is None else scan.y_estimate_m,
+            None if scan is None else scan.odometer_m,
+            departures.get(visit_id),
+        )
+    return out
+
+
 class _LoggedProbes:
     """Answers probe requests from the probe sweeps the log holds for one visit."""
 
@@ -249,12 +310,17 @@ class _LoggedProbes:
 
 
 def answer_probes(
-    localizer: Localizer, images: ImageSet, probes: list[LoggedSweep]
+    localizer: Localizer,
+    images: ImageSet,
+    probes: list[LoggedSweep],
+    exits_rad: tuple[float, ...] | None = None,
+    odometer_m: float | None = None,
 ) -> tuple[Decision, int]:
-    """``localizer``'s decision for a visit's ``images``, its probe requests answered
-    from the visit's logged ``probes``; and how many requests the log could not answer."""
+    """``localizer``'s decision for a visit's ``images`` (and its exit scan, if
+    logged), its probe requests answered from the visit's logged ``probes``; and how
+    many requests the log could not answer."""
     answers = _LoggedProbes(probes)
-    decision = localizer.localize(images, answers)
+    decision = localizer.localize(images, answers, exits_rad, odometer_m)
     return decision, answers.not_in_log
 
 
@@ -276,17 +342,27 @@ def replay(
     for s in sweeps:
         if s.probe is not None:
             probes.setdefault(s.visit_id, []).append(s)
+    events = node_events_of(messages, warnings, source.name)
     localizer = Localizer(config)
     decided: list[VisitDecision] = []
     for i, sweep in enumerate(visits):
         if lossy and i > 0 and sweep.visit_id != visits[i - 1].visit_id + 1:
-            localizer.map.lose_track()
+            localizer.map.new_traversal()
             breaks.append(i)
+        scan = events.get(sweep.visit_id)
+        exits = None if scan is None else scan.exits_rad
+        odometer = None if scan is None else scan.odometer_m
         start = time.perf_counter()
-        decision, missing = answer_probes(localizer, sweep.images, probes.get(sweep.visit_id, []))
+        decision, missing = answer_probes(
+            localizer, sweep.images, probes.get(sweep.visit_id, []), exits, odometer
+        )
         latency = time.perf_counter() - start
+        if scan is not None and scan.departure_rad is not None:
+            localizer.depart(scan.departure_rad)
         decided.append(
-            VisitDecision(sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, missing)
+            VisitDecision(
+                sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, latency, missing, scan
+            )
         )
         if progress is not None:
             progress(i + 1, len(visits))
@@ -310,4 +386,5 @@ def replay(
         camera_angles={s.sweep_id: s.images.camera_angle_rad for s in sweeps},
         visit_sets={s.sweep_id: s.images for s in visits},
         breaks=tuple(breaks),
+        localizer=localizer,
     )

@@ -3,8 +3,14 @@
 Per visit: the true node (from ``/truth/sweep``), the predicted node, similarity,
 margin, known or new, and the rotation estimate with its error against the true
 heading change. Counts of correct and wrong decisions, whether the map is the
-true graph of the visited nodes, and the paper's Table 1 (similarity of visits to
-known and to unknown junctions) and Table 2 (rotation error).
+true network, how much of it the run covered and whether the map's ports are the
+true pipe ends (:mod:`replay.coverage`), and the paper's Table 1 (similarity of
+visits to known and to unknown junctions) and Table 2 (rotation error).
+
+The map is ``correct`` when it is the true graph of the visited nodes under the
+visit correspondence *and* the run visited every true node and drove every true
+pipe; ``partial`` when it is right as far as it goes but the run missed some;
+``wrong`` otherwise.
 
 A decision is:
 
@@ -30,6 +36,7 @@ from pipemap.errors import LogFormatError
 from pipemap.localizer import FastConfig, LocalizerConfig, TopoMap, pairwise_matches, wrap_angle_rad
 from pipemap.recorder import Integrity, Topic
 from pipemap.recorder.schemas import TrueSweep
+from pipemap.replay.coverage import Coverage, coverage_of, ports_correct, true_network
 from pipemap.replay.replayer import ReplayResult, replay, visit_label
 from pipemap.replay.source import MessageSource
 
@@ -70,6 +77,8 @@ class VisitScore:
     true_rotation_rad: float | None
     rotation_error_rad: float | None
     latency_ms: float
+    arrival_port: int | None = None
+    departure_port: int | None = None
 
 
 @dataclass(frozen=True)
@@ -108,6 +117,19 @@ class ScoreReport:
     true_nodes: int
     predicted_nodes: int
     pairs: PairStatistics
+    #: ``None`` when the log holds no true network.
+    coverage: Coverage | None = None
+    #: ``None`` when the map has no ports.
+    ports_correct: bool | None = None
+    #: The map is right as far as the run went (``map_correct`` needs coverage too).
+    mapped_part_correct: bool = False
+
+    @property
+    def map_status(self) -> str:
+        """``correct``, ``partial`` (right as far as the run went) or ``wrong``."""
+        if self.map_correct:
+            return "correct"
+        return "partial" if self.mapped_part_correct else "wrong"
 
     def counts(self) -> dict[str, int]:
         """Decisions by outcome."""
@@ -138,6 +160,9 @@ class ScoreReport:
             "integrity": self.integrity,
             "threshold": self.threshold,
             "map_correct": self.map_correct,
+            "map": self.map_status,
+            "coverage": None if self.coverage is None else self.coverage.document(),
+            "ports_correct": self.ports_correct,
             "visits": len(self.visits),
             "true_nodes": self.true_nodes,
             "predicted_nodes": self.predicted_nodes,
@@ -164,6 +189,8 @@ class ScoreReport:
                     "rotation_rad": _round(v.rotation_rad),
                     "true_rotation_rad": _round(v.true_rotation_rad),
                     "rotation_error_rad": _round(v.rotation_error_rad),
+                    "arrival_port": v.arrival_port,
+                    "departure_port": v.departure_port,
                 }
                 for v in self.visits
             ],
@@ -257,13 +284,13 @@ def _map_correct(predicted: list[int], true: list[str], breaks: set[int] | None 
     true_map = TopoMap()
     for i, t in enumerate(true):
         if i in breaks:
-            true_map.lose_track()
+            true_map.new_traversal()
         true_map.visit(order[t])
     first = {node: i for i, node in enumerate(dict.fromkeys(predicted))}
     predicted_map = TopoMap()
     for i, p in enumerate(predicted):
         if i in breaks:
-            predicted_map.lose_track()
+            predicted_map.new_traversal()
         predicted_map.visit(first[p])
     relabel = {first[p]: order[t] for p, t in to_true.items()}
     mapped = [(relabel[e.u], relabel[e.v], e.label) for e in predicted_map.edges()]
@@ -283,8 +310,9 @@ def score_replay(
     seen: set[str] = set()
     visits: list[VisitScore] = []
     breaks: list[int] = []  # positions in ``visits`` where the path is broken
-    for i, v in enumerate(result.visits):
-        if i in result.breaks:
+    records = result.topomap.visit_records
+    for index, v in enumerate(result.visits):
+        if index in result.breaks:
             breaks.append(len(visits))
         truth = truths.get(v.sweep_id)
         if truth is None:
@@ -327,19 +355,31 @@ def score_replay(
                 true_rotation_rad=true_turn,
                 rotation_error_rad=error,
                 latency_ms=1000.0 * v.latency_s,
+                arrival_port=d.arrival_port,
+                departure_port=records[index].departure_port if index < len(records) else None,
             )
         )
     predicted = [v.predicted_node for v in visits]
     true = [v.true_node for v in visits]
+    mapped = bool(visits) and _map_correct(predicted, true, set(breaks))
+    network = true_network(source)
+    coverage = None if network is None else coverage_of(network, true)
+    ports = None
+    if network is not None:
+        ports = ports_correct(result.topomap, network, created)
+    complete = coverage is None or coverage.complete
     return ScoreReport(
         log=source.name,
         integrity=result.integrity.value,
         threshold=threshold,
         visits=tuple(visits),
-        map_correct=bool(visits) and _map_correct(predicted, true, set(breaks)),
+        map_correct=mapped and complete,
         true_nodes=len(set(true)),
         predicted_nodes=result.topomap.node_count,
         pairs=pair_statistics(result, truths, fast),
+        coverage=coverage,
+        ports_correct=ports,
+        mapped_part_correct=mapped,
     )
 
 

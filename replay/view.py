@@ -113,7 +113,9 @@ def describe_decision(visit: VisitDecision) -> str:
 class MapLog:
     """The map as it grows, and each decision as text, at the time of the decision.
 
-    Fed one decision at a time, so a live view grows the map as the run goes.
+    Fed one decision at a time, so a live view grows the map as the run goes. Given
+    the ports, edges join ports, as in the replay's map: a traversal that conflicts
+    with the map adds none.
     """
 
     def __init__(self, rec: rr.RecordingStream) -> None:
@@ -121,13 +123,24 @@ class MapLog:
         self.topomap = TopoMap()
         self._visits: dict[int, list[str]] = {}
 
-    def add(self, v: VisitDecision) -> None:
-        """Log the map after ``v``'s decision, and the decision, at its time."""
+    def add(
+        self,
+        v: VisitDecision,
+        ports: tuple[float, ...] | None = None,
+        arrival_port: int | None = None,
+        *,
+        new_traversal: bool = False,
+    ) -> None:
+        """Log the map after ``v``'s decision, and the decision, at its time.
+        ``ports`` are the junction's (used when it is new); ``new_traversal``: the
+        path is broken before this visit."""
         import rerun as rr
 
         rec, topomap = self.rec, self.topomap
         node = v.decision.node
-        topomap.visit(node)
+        if new_traversal:
+            topomap.new_traversal()
+        topomap.visit(node, ports if node == topomap.node_count else None, arrival_port)
         self._visits.setdefault(node, []).append(visit_label(v.visit_id))
         set_time(rec, v.time_ns)
         count = topomap.node_count
@@ -143,11 +156,24 @@ class MapLog:
         level = "INFO" if v.probes_not_in_log == 0 else "WARN"
         rec.log("log/decisions", rr.TextLog(describe_decision(v), level=level))
 
+    def depart(self, port: int | None) -> None:
+        """The robot left the junction of the last visit by ``port``."""
+        self.topomap.depart(port)
+
 
 def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
     grown = MapLog(rec)
-    for v in result.visits:
-        grown.add(v)
+    records = result.topomap.visit_records
+    for i, v in enumerate(result.visits):
+        record = records[i] if i < len(records) else None
+        grown.add(
+            v,
+            result.topomap.ports(v.decision.node),
+            None if record is None else record.arrival_port,
+            new_traversal=i in result.breaks,
+        )
+        if record is not None:
+            grown.depart(record.departure_port)
 
 
 #: A replay's result, or a function that waits for one being made elsewhere.

@@ -9,11 +9,13 @@ from __future__ import annotations
 from pipemap.sim.episode import Condition, Episode, Pose, SimConfig, Sweep, Visit
 from pipemap.sim.network import Network, Node, NodeKind, Pipe, build_network
 from pipemap.sim.plan import Tour, right_hand_tour, tour_edges
+from pipemap.sim.policy import ExitChoice, ExitPolicy, Junction, RightHandPolicy, RunStatus
 from pipemap.sim.robot import PlanarPose, Robot, RobotSpec
 from pipemap.sim.stream import (
     ControlStep,
     NodeArrival,
     NodeDeparture,
+    NodeExits,
     Note,
     RecordSink,
     SimRecord,
@@ -29,18 +31,24 @@ __all__ = [
     "Condition",
     "ControlStep",
     "Episode",
+    "ExitChoice",
+    "ExitPolicy",
+    "Junction",
     "Network",
     "Node",
     "NodeArrival",
     "NodeDeparture",
+    "NodeExits",
     "NodeKind",
     "Note",
     "Pipe",
     "PlanarPose",
     "Pose",
     "RecordSink",
+    "RightHandPolicy",
     "Robot",
     "RobotSpec",
+    "RunStatus",
     "SimConfig",
     "SimRecord",
     "Sweep",

@@ -1,6 +1,8 @@
-"""The autonomous explorer: right-most-branch exploration from the robot's own sensors.
+"""The autonomous explorer: exploration from the robot's own sensors.
 
-It never reads ground truth: only the three rangers, the gyro and the encoders.
+It never reads ground truth: only the three rangers, the gyro and the encoders. Which
+pipe to take at a junction is its :class:`~pipemap.sim.policy.ExitPolicy`'s choice
+(the paper's right-most-branch rule unless it is given another).
 
 * **Calibrate**: stand still for 2 s first; whenever the robot stands still (here
   and during every sweep) the gyro's reading is taken as its bias, and the heading
@@ -14,16 +16,18 @@ It never reads ground truth: only the three rangers, the gyro and the encoders.
   the heading estimate, see :func:`sim.episode.sweep_start_angle`), then **scan**:
   turn in place once round while the front ranger looks for openings. Openings, not a lookup table
   of junction types, give the exits, so junctions at any angle work.
-* **Choose** the right-most exit relative to the arrival heading (turn around at a
-  dead end), **turn** to it by gyro and **leave** until the node is behind.
-* **Stop** when back at the start (by odometry) as many times as it has pipes: on
-  a tree the right-hand rule has then covered everything. A watchdog ends a run
-  whose robot touches a wall or stops making progress, with that reason.
+* **Choose**: the exits (relative to the arrival heading) and the odometry go to the
+  policy, which names the exit to take (or straight back), or stops the run. The
+  right-hand policy takes the right-most exit (turns around at a dead end) and stops
+  when back at the start (by odometry) as many times as it has pipes: on a tree the
+  rule has then covered everything. **Turn** to the exit by gyro and **leave** until
+  the node is behind.
+* A watchdog ends a run whose robot touches a wall or stops making progress, with
+  that reason.
 """
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -32,6 +36,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pipemap.sim.episode import Pose, Sweep, sweep_start_angle
+from pipemap.sim.policy import ExitPolicy, Junction, RightHandPolicy, RunStatus
 from pipemap.sim.robot import (
     NS_PER_S,
     EncoderReading,
@@ -45,6 +50,7 @@ from pipemap.sim.stream import (
     ControlStep,
     NodeArrival,
     NodeDeparture,
+    NodeExits,
     Note,
     RecordSink,
     SweepEnd,
@@ -70,15 +76,6 @@ class _Bend:
     arrival_heading: float
 
 
-class RunStatus(enum.Enum):
-    """How an exploration ended."""
-
-    FINISHED = "finished"
-    STUCK = "stuck"
-    LEFT_PIPE = "left the pipe"
-    TIME_LIMIT = "time limit"
-
-
 @dataclass(frozen=True)
 class ExplorerConfig:
     """Speeds, thresholds and limits of the explorer."""
@@ -97,6 +94,7 @@ class ExplorerConfig:
     #: Standing still this long at the start measures the gyro's bias.
     calibrate_ns: int = 2 * NS_PER_S
     camera_height_m: float = 0.05
+    #: The right-hand policy's stop (:class:`~pipemap.sim.policy.RightHandPolicy`).
     #: Nodes are at least 3 pipe diameters (0.6 m) apart, so the start is looked for
     #: within less than that.
     start_radius_m: float = 0.3
@@ -206,7 +204,8 @@ def _axes_crossing(
 
 
 class Explorer:
-    """Drives a :class:`Robot` through its world by the right-most-branch rule."""
+    """Drives a :class:`Robot` through its world; ``policy`` chooses the exits (default:
+    the right-most-branch rule with the config's start radius and drift)."""
 
     def __init__(
         self,
@@ -215,10 +214,14 @@ class Explorer:
         config: ExplorerConfig | None = None,
         true_node_of: Callable[[PlanarPose], str] | None = None,
         sink: RecordSink | None = None,
+        policy: ExitPolicy | None = None,
     ) -> None:
         self.robot = robot
         self.camera = camera
         self.config = config if config is not None else ExplorerConfig()
+        if policy is None:
+            policy = RightHandPolicy(self.config.start_radius_m, self.config.drift_per_m)
+        self.policy = policy
         # Ground truth only labels the sweeps for scoring; no decision reads it.
         self._true_node_of = true_node_of
         self._yaw_est = robot.pose.yaw_rad  # the robot's own heading estimate (gyro)
@@ -539,11 +542,13 @@ class Explorer:
         return [math.remainder(o, 2.0 * math.pi) for o in openings]
 
     def run(self) -> ExplorationResult:
-        """Explore until back at the start after covering the network, or the watchdog."""
+        """Explore until the policy stops the run, or the watchdog does.
+
+        At each junction the exits go to the sink (as :class:`NodeExits`) before the
+        policy is asked, so that whatever listens (an online localizer) can decide
+        where the robot is first.
+        """
         c = self.config
-        start_xy = self._xy_est.copy()
-        returns_needed: int | None = None
-        returns = 0
         arrival = self._yaw_est
         expected = self._xy_est.copy()
         first = True
@@ -555,29 +560,26 @@ class Explorer:
                     self._result.status = status
                     self._event(f"watchdog: {status.value}", warning=True)
                     break
+            first = False
             self._sweep()
             exits = self._scan()
-            if first:
-                returns_needed = max(1, len(exits))
-                first = False
-            elif (
-                len(exits) == returns_needed
-                and float(np.linalg.norm(self._xy_est - start_xy))
-                < c.start_radius_m + c.drift_per_m * self._result.distance_m
-            ):
-                returns += 1
-                if returns_needed is not None and returns >= returns_needed:
-                    self._event("back at the start")
-                    break
-            back = arrival + math.pi
-            choices = [e for e in exits if abs(math.remainder(e - back, 2.0 * math.pi)) > 0.5]
-            if not choices:
-                heading = back
-            else:
-                heading = min(choices, key=lambda e: math.remainder(e - arrival, 2.0 * math.pi))
+            visit = len(self._result.sweeps)
+            relative = tuple(math.remainder(e - arrival, 2.0 * math.pi) for e in exits)
+            x, y = (float(v) for v in self._xy_est)
+            odometer = self._result.distance_m
+            if self._sink is not None:
+                self._sink(NodeExits(self.robot.t_ns, visit, relative, x, y, odometer))
+            choice = self.policy.choose(Junction(visit, relative, x, y, odometer))
+            for note in choice.notes:
+                self._event(note)
+            if choice.stop is not None:
+                self._result.status = choice.stop
+                if choice.stop is not RunStatus.FINISHED:
+                    self._event(f"stopped: {choice.stop.value}", warning=True)
+                break
+            heading = arrival + math.pi if choice.exit_index is None else exits[choice.exit_index]
             if self._sink is not None:
                 turn = math.remainder(heading - arrival, 2.0 * math.pi)
-                visit = len(self._result.sweeps)
                 self._sink(NodeDeparture(self.robot.t_ns, visit, len(exits), turn))
             self._turn_to(heading)
             self._state = "leaving node"
@@ -622,8 +624,10 @@ def autonomous_run(
     start: str | None = None,
     config: ExplorerConfig | None = None,
     sink: RecordSink | None = None,
+    policy: ExitPolicy | None = None,
 ) -> ExplorationResult:
-    """Place the robot at the start node (default the entry) and explore.
+    """Place the robot at the start node (default the entry) and explore, choosing
+    exits by ``policy`` (default the right-most-branch rule).
 
     It starts as if it had just arrived from its first neighbour (in counter-clockwise
     order from the smallest heading), facing away from it: the convention of
@@ -644,4 +648,5 @@ def autonomous_run(
         off = math.hypot(nearest.x_m - pose.x_m, nearest.y_m - pose.y_m)
         return nearest.label if off < 0.15 else "?"
 
-    return Explorer(robot, camera, config, true_node_of=true_node, sink=sink).run()
+    explorer = Explorer(robot, camera, config, true_node_of=true_node, sink=sink, policy=policy)
+    return explorer.run()

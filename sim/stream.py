@@ -21,6 +21,7 @@ __all__ = [
     "ControlStep",
     "NodeArrival",
     "NodeDeparture",
+    "NodeExits",
     "Note",
     "RecordSink",
     "SimRecord",
@@ -101,6 +102,20 @@ class NodeArrival:
 
 
 @dataclass(frozen=True)
+class NodeExits:
+    """The pipes the robot found at a node, after its sweep: headings relative to the
+    heading it arrived with (0 straight on, positive to the left, in (-pi, pi]), and
+    its dead reckoning there (position in the start's frame, distance driven)."""
+
+    t_ns: int
+    visit_id: int
+    exits_rad: tuple[float, ...]
+    x_m: float
+    y_m: float
+    odometer_m: float
+
+
+@dataclass(frozen=True)
 class NodeDeparture:
     """The robot leaves a node by the pipe at ``exit_rad`` from its arrival heading
     (0 straight on, positive to the left), having found ``exits`` pipes there."""
@@ -130,6 +145,7 @@ SimRecord = (
     | SweepImage
     | SweepEnd
     | NodeArrival
+    | NodeExits
     | NodeDeparture
     | Note
 )

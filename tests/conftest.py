@@ -57,7 +57,7 @@ def paper_sets() -> dict[str, PaperSet]:
 
 @pytest.fixture(scope="session")
 def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An autonomous run of ``paper`` at 32 px, recorded once for the session."""
+    """An autonomous run of ``paper`` at 64 px, recorded once for the session."""
     from tests.logs import record
 
     path = tmp_path_factory.mktemp("recorded") / "run.mcap"

@@ -14,7 +14,7 @@ from pipemap.recorder import LogWriter, Topic, schemas
 from pipemap.recorder.messages import image_message, pose_message
 
 #: Settings of the small recorded run the end-to-end tests share.
-SMALL_RUN = ["--network", "paper", "--resolution", "32", "--seed", "3"]
+SMALL_RUN = ["--network", "paper", "--resolution", "64", "--seed", "3"]
 
 
 def record(output: Path, *extra: str) -> subprocess.CompletedProcess[str]:

@@ -471,8 +471,11 @@ def test_map_json(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     assert status == 0, err
     assert err == ""
     doc = json.loads(out)
-    assert doc["nodes"] == [{"id": 0}, {"id": 1}]
-    assert doc["edges"] == [{"u": 0, "v": 1, "label": 1}]
+    # Image folders without the robot's exit scans: no ports.
+    assert doc["nodes"] == [{"id": 0, "ports": []}, {"id": 1, "ports": []}]
+    assert doc["edges"] == [
+        {"u": 0, "u_port": None, "v": 1, "v_port": None, "label": 1, "length_m": None}
+    ]
     visits = doc["visits"]
     assert [v["set"] for v in visits] == dirs
     assert [v["known"] for v in visits] == [False, False, True]
@@ -494,7 +497,7 @@ def test_map_allow_repeat_lets_a_set_be_the_junction_before_it(
     assert status == 0, err
     doc = json.loads(out)
     assert [v["node"] for v in doc["visits"]] == [0, 0]  # the paper's rule: a self-loop
-    assert doc["edges"] == [{"u": 0, "v": 0, "label": 1}]
+    assert [(e["u"], e["v"], e["label"]) for e in doc["edges"]] == [(0, 0, 1)]
 
 
 def test_map_is_deterministic(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:

@@ -73,6 +73,9 @@ def paper_spec_text(settings: ExperimentSettings | None = None) -> str:
     common = (
         f'network = ["paper"]\nseed = [{s.seed}]\nresolution = [{s.resolution_px}]\n'
         f'rule = ["paper", "default"]\nthreshold = [{s.threshold!r}]\n'
+        # The autonomous robot explores by the paper's right-hand rule, as published
+        # (on this tree the map-driven walk is the same); placed runs ignore it.
+        'explore = ["right-hand"]\n'
     )
     conditions = ", ".join(f'"{c}"' for c in CONDITIONS)
     starts = ", ".join(f'"{x}"' for x in STARTS)
@@ -90,7 +93,8 @@ def paper_spec_text(settings: ExperimentSettings | None = None) -> str:
         "# Figure 6: images per sweep, perfect condition, the paper's sweeps.\n"
         f'[[grid]]\n{common}start = ["S"]\ncondition = ["perfect"]\n'
         f"images = [{', '.join(map(str, IMAGE_COUNTS))}]\nalign_sweeps = [false]\n\n"
-        "# The autonomous exploration from every node, aligned sweeps.\n"
+        "# The autonomous exploration from every node, aligned sweeps, by the paper's\n"
+        "# right-hand rule as published (on this tree the map-driven walk is the same).\n"
         f"[[grid]]\n{common}start = [{starts}]\n"
         'condition = ["autonomous"]\nimages = [6]\nalign_sweeps = [true]\n'
     )

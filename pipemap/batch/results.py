@@ -46,6 +46,12 @@ __all__ = [
 SCORE_COLUMNS = (
     "integrity",
     "map_correct",
+    "map",
+    "coverage.nodes_visited",
+    "coverage.nodes_total",
+    "coverage.pipes_traversed",
+    "coverage.pipes_total",
+    "ports_correct",
     "visits",
     "true_nodes",
     "predicted_nodes",

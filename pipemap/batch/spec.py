@@ -15,6 +15,7 @@ a key left out takes that command's default::
     resolution = [64]                 # record --resolution    (400)
     images = [6]                      # record --images        (6)
     align_sweeps = [true]             # record --[no-]align-sweeps (true)
+    explore = ["map", "right-hand"]   # record --explore       (map)
     rule = ["default", "paper"]       # score's decision rule  (default), see RULES
     threshold = [0.36]                # score --threshold      (the rule's own, 0.36)
 
@@ -67,12 +68,15 @@ GRID_KEYS = (
     "resolution",
     "images",
     "align_sweeps",
+    "explore",
     "rule",
     "threshold",
 )
 #: The keys that change the recording; the others change only the scoring.
-RECORDING_KEYS = GRID_KEYS[:7]
+RECORDING_KEYS = GRID_KEYS[:8]
 CONDITIONS = ("perfect", "noise", "active", "entrance", "autonomous")
+#: ``record --explore``: how the autonomous robot chooses its exits.
+EXPLORE_POLICIES = ("map", "right-hand")
 #: The default of each key (``None``: resolved per run, see :class:`RunPoint`).
 DEFAULTS: dict[str, Any] = {
     "network": "paper",
@@ -82,6 +86,7 @@ DEFAULTS: dict[str, Any] = {
     "resolution": 400,
     "images": 6,
     "align_sweeps": True,
+    "explore": "map",
     "rule": "default",
     "threshold": None,
 }
@@ -175,6 +180,7 @@ class RunPoint:
     resolution: int
     images: int
     align_sweeps: bool
+    explore: str
     rule: str
     threshold: float
 
@@ -189,6 +195,7 @@ class RunPoint:
             f"{self.resolution}px",
             f"{self.images}img",
             "aligned" if self.align_sweeps else "straight",
+            self.explore,
             self.rule,
             f"t{self.threshold!r}",
         ]
@@ -205,7 +212,7 @@ class RunPoint:
 
     def record_settings(self) -> RecordSettings:
         """What ``pipemap record`` is given for this run."""
-        from pipemap.recorder import RecordSettings
+        from pipemap.recorder import Explore, RecordSettings
         from pipemap.sim.episode import Condition
 
         return RecordSettings(
@@ -216,6 +223,7 @@ class RunPoint:
             resolution_px=self.resolution,
             images_per_sweep=self.images,
             align_sweeps=self.align_sweeps,
+            explore=Explore(self.explore),
         )
 
     def commands(self, log: str = "run.mcap") -> tuple[str, str]:
@@ -224,7 +232,7 @@ class RunPoint:
             f"pipemap record --network {self.network} --seed {self.seed} --start {self.start} "
             f"--condition {self.condition} --resolution {self.resolution} "
             f"--images {self.images}{'' if self.align_sweeps else ' --no-align-sweeps'} "
-            f"-o {log}"
+            f"--explore {self.explore} -o {log}"
         )
         score = f"{RULES[self.rule].command()} {log} --threshold {self.threshold:g} --json"
         return record, score
@@ -258,11 +266,13 @@ def _is_int(v: Any) -> bool:
 
 def _check_value(key: str, v: Any) -> str | None:
     """Why ``v`` cannot be a value of ``key``, or ``None`` if it can."""
-    if key in ("network", "start", "condition", "rule"):
+    if key in ("network", "start", "condition", "rule", "explore"):
         if not isinstance(v, str) or not v.strip():
             return f"{v!r} is not a name (a quoted string)"
         if key == "condition" and v not in CONDITIONS:
             return f"unknown condition {v!r} (one of {', '.join(CONDITIONS)})"
+        if key == "explore" and v not in EXPLORE_POLICIES:
+            return f"unknown exploration {v!r} (one of {', '.join(EXPLORE_POLICIES)})"
         if key == "rule" and v not in RULES:
             return f"unknown rule {v!r} (one of {', '.join(RULES)})"
         return None

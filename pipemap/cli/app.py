@@ -42,6 +42,7 @@ COMMANDS: dict[str, str] = {
     "info": "pipemap.cli.log_commands:run_info",
     "replay": "pipemap.cli.replay_commands:run_replay",
     "score": "pipemap.cli.replay_commands:run_score",
+    "route": "pipemap.cli.route_command:run_route",
     "experiment": "pipemap.cli.experiment_command:run_experiment",
     "batch": "pipemap.cli.batch_command:run_batch_command",
     "batch-report": "pipemap.cli.batch_command:run_batch_report",

@@ -12,7 +12,7 @@ import sys
 from typing import Any, TextIO
 
 from pipemap import api
-from pipemap.cli.parser import fast_config, two_view_settings
+from pipemap.cli.parser import fast_config, port_check, two_view_settings
 from pipemap.imagesets import load_image_sets
 from pipemap.localizer import (
     ImageSet,
@@ -93,6 +93,12 @@ def _rotation(visit: dict[str, Any]) -> str:
     return "-" if rotation is None else f"{rotation:+.4f}"
 
 
+def _end(edge: dict[str, Any], end: str) -> str:
+    """An edge's end as ``node`` or ``node:port``."""
+    port = edge[f"{end}_port"]
+    return str(edge[end]) if port is None else f"{edge[end]}:{port}"
+
+
 def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Load the folders as a visit sequence, localize each, print the map."""
     two_view, verify = two_view_settings(args)
@@ -102,6 +108,7 @@ def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         distinct_consecutive=not args.allow_repeat,
         two_view=two_view,
         verify=verify,
+        port_check=port_check(args),
     )
     doc = api.map_image_sets(args.dirs, config, args.fov_deg, args.keep_top)
     if args.json:
@@ -116,6 +123,6 @@ def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
             f"{v['set']:<{width}}  {v['node']:4d}  {'yes' if v['known'] else 'no ':>5}"
             f"  {similarity:>10}  {margin:>6}  {_rotation(v):>8}\n"
         )
-    edges = ", ".join(f"{e['u']}-{e['v']} ({e['label']})" for e in doc["edges"])
+    edges = ", ".join(f"{_end(e, 'u')}-{_end(e, 'v')} ({e['label']})" for e in doc["edges"])
     out.write(f"{len(doc['nodes'])} nodes; edges: {edges or 'none'}\n")
     return 0

@@ -93,6 +93,8 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         from pipemap.cli.view_command import check_view_target
 
         view_target = check_view_target(target, args.save, args.force, args.connect)
+    from pipemap.recorder.online import Explore
+
     settings = RecordSettings(
         network=args.network,
         start=args.start,
@@ -102,6 +104,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         images_per_sweep=args.images,
         align_sweeps=args.align_sweeps,
         threshold=args.threshold,
+        explore=Explore(args.explore),
     )
     live = None
     if args.view and not args.save:
@@ -123,12 +126,19 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     if progress is not None:
         err.write("\n")
     size_mb = target.stat().st_size / 1e6
+    condition = args.condition
+    if condition == "autonomous":
+        condition += f" (explore {args.explore})"
+    status = result.status
+    if result.status == "finished" and not result.ok:
+        status = "finished, but not every node and pipe was visited"
     out.write(
         f"recorded {target} ({size_mb:.1f} MB, {result.messages} messages): network "
-        f"{args.network}, condition {args.condition}, {result.sweeps} sweeps, "
-        f"{result.visits} visits of {len(result.true_nodes)}/{result.node_count} nodes, "
+        f"{args.network}, condition {condition}, {result.sweeps} sweeps, "
+        f"{result.visits} visits of {len(result.true_nodes)}/{result.node_count} nodes "
+        f"({result.pipes_driven}/{result.pipe_count} pipes), "
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, "
-        f"{result.status}\n"
+        f"{status}\n"
     )
     if live is not None:
         if shown is not None:
@@ -243,6 +253,7 @@ def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
             f"messages   {doc['messages']}",
             f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
             f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
+            f"explore {meta.get('explore', 'right-hand')}, "
             f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images",
             f"sweeps     {doc['sweeps']} complete in {doc['visits']} node visits"
             + (f" ({len(skipped)} skipped by a replay)" if skipped else ""),

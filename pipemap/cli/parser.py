@@ -59,6 +59,7 @@ _positive_int = _checked(int, lambda v: v >= 1, "must be at least 1")
 _seed = _checked(int, lambda v: 0 <= v < 2**63, "seed must be in [0, 2^63)")
 _images = _checked(int, lambda v: 2 <= v <= 72, "images per sweep must be 2..72")
 _resolution = _checked(int, lambda v: 16 <= v <= 4096, "resolution must be 16..4096 px")
+_node_id = _checked(int, lambda v: v >= 0, "a node id is an integer >= 0")
 _fraction = _checked(float, lambda v: 0.0 < v <= 1.0, "must be in (0, 1]")
 _fov_deg = _checked(float, lambda v: 0.0 < v < 360.0, "field of view must be in (0, 360) degrees")
 
@@ -183,6 +184,17 @@ def add_rule_options(p: argparse.ArgumentParser) -> None:
         "peak shift); the two-view model needs a camera that turns about its own centre, "
         "as pipemap's does (implies --no-verify)",
     )
+    p.add_argument(
+        "--no-port-check",
+        action="store_true",
+        help="recognise a junction by its images alone, even when the robot's exits do "
+        "not line up with its known pipes (by default such a match is passed over)",
+    )
+
+
+def port_check(args: argparse.Namespace) -> bool:
+    """``port_check`` of :class:`localizer.LocalizerConfig` from ``--no-port-check``."""
+    return not getattr(args, "no_port_check", False)
 
 
 def two_view_settings(args: argparse.Namespace) -> tuple[bool, bool]:
@@ -221,6 +233,14 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
     p.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
     p.add_argument(
         "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
+    )
+    p.add_argument(
+        "--explore",
+        choices=["map", "right-hand"],
+        default="map",
+        help="autonomous condition: how the robot chooses exits; map (default): every "
+        "untraversed pipe of its own map, Trémaux-style, then back to the start; "
+        "right-hand: the paper's right-most-branch rule",
     )
     p.add_argument(
         "--align-sweeps",
@@ -412,6 +432,32 @@ def build_parser() -> argparse.ArgumentParser:
             p_log.add_argument(
                 "--force", action="store_true", help="replace the files of an earlier score"
             )
+
+    p_route = sub.add_parser(
+        "route",
+        help="the way through a map from one junction to another, pipe by pipe",
+        description="Plan the shortest route through a map (pipemap replay -o, pipemap map "
+        "--json) and print it junction by junction: the port to arrive by and the port "
+        "to leave by. Exit 1 when the map has no way between the two.",
+    )
+    p_route.add_argument("map", metavar="MAP.json", help="a map document with ports")
+    p_route.add_argument(
+        "--from",
+        dest="start",
+        type=_node_id,
+        required=True,
+        metavar="NODE",
+        help="the map node (id) the route starts at",
+    )
+    p_route.add_argument(
+        "--to",
+        dest="goal",
+        type=_node_id,
+        required=True,
+        metavar="NODE",
+        help="the map node (id) the route ends at",
+    )
+    p_route.add_argument("--json", action="store_true", help="print the route as a JSON list")
 
     p_exp = sub.add_parser(
         "experiment",

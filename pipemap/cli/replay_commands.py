@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from pipemap.cli.outputs import output_file, output_folder, write_text
-from pipemap.cli.parser import fast_config, two_view_settings
+from pipemap.cli.parser import fast_config, port_check, two_view_settings
 from pipemap.errors import WriteError
 
 __all__ = [
@@ -29,8 +29,8 @@ __all__ = [
 
 def localizer_config(args: argparse.Namespace) -> Any:
     """The localizer's settings from ``--threshold``, ``--no-active-vision``,
-    ``--allow-repeat``, ``--no-verify``, ``--no-two-view`` and the similarity options
-    (``--downsample``, ``--zoom``, ...)."""
+    ``--allow-repeat``, ``--no-verify``, ``--no-two-view``, ``--no-port-check`` and the
+    similarity options (``--downsample``, ``--zoom``, ...)."""
     from pipemap.localizer import LocalizerConfig
 
     two_view, verify = two_view_settings(args)
@@ -41,6 +41,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         distinct_consecutive=not args.allow_repeat,
         two_view=two_view,
         verify=verify,
+        port_check=port_check(args),
     )
 
 
@@ -132,10 +133,21 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
     counts = doc["decisions"]
     sim = doc["similarity"]
     rot = doc["rotation_error_rad"]["known"]
+    cov = doc["coverage"]
+    status = {"correct": "correct", "partial": "partial", "wrong": "WRONG"}[doc["map"]]
     lines = [
         f"log         {args.log} ({doc['integrity']})",
-        f"map         {'correct' if doc['map_correct'] else 'WRONG'}: {doc['predicted_nodes']} "
-        f"junctions for {doc['true_nodes']} true nodes, {doc['visits']} visits",
+        f"map         {status}: {doc['predicted_nodes']} junctions for {doc['true_nodes']} "
+        f"true nodes visited, {doc['visits']} visits",
+    ]
+    if cov is not None:
+        lines.append(
+            f"coverage    {cov['nodes_visited']}/{cov['nodes_total']} nodes, "
+            f"{cov['pipes_traversed']}/{cov['pipes_total']} pipes"
+        )
+    ports = {True: "correct", False: "WRONG", None: "none (no exits in the log)"}
+    lines += [
+        f"ports       {ports[doc['ports_correct']]}",
         f"decisions   {counts['correct_known']} correct known, {counts['correct_new']} correct "
         f"new, {_count(counts['false_merge'], 'false merge')}, {counts['false_new']} false new",
         f"similarity  known {_stat(sim['known'])}; unknown {_stat(sim['unknown'])}",
@@ -145,14 +157,15 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         f"max {_num(rot['max'])} rad (n={rot['n']})",
         f"latency     mean {_num(doc['latency_ms']['mean'], 1)} ms, "
         f"max {_num(doc['latency_ms']['max'], 1)} ms per decision",
-        "visit  true  node  known  similarity  margin    rotation  error      outcome",
+        "visit  true  node  known  similarity  margin    rotation  error      in  out  outcome",
     ]
     for v in doc["per_visit"]:
         lines.append(
             f"{v['visit']}   {v['true_node']:<4}  {v['predicted_node']:<4}  "
             f"{'yes' if v['known'] else 'no':<5}  {_num(v['similarity'], 3):<10}  "
             f"{_num(v['margin'], 3):<8}  {_num(v['rotation_rad']):<9}  "
-            f"{_num(v['rotation_error_rad']):<9}  {v['outcome']}"
+            f"{_num(v['rotation_error_rad']):<9}  {_port(v['arrival_port']):<2}  "
+            f"{_port(v['departure_port']):<3}  {v['outcome']}"
         )
     out.write("\n".join(lines) + "\n")
     return 0
@@ -166,6 +179,10 @@ def _num(value: float | None, decimals: int = 4) -> str:
 
 def _count(n: int, noun: str) -> str:
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
+def _port(value: int | None) -> str:
+    return "-" if value is None else str(value)
 
 
 def _stat(summary: dict[str, Any]) -> str:

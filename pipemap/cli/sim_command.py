@@ -16,14 +16,13 @@ import re
 import shutil
 import sys
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
-import cv2
 import numpy as np
 
 from pipemap.cli.outputs import output_folder
 from pipemap.errors import InputError, WriteError
-from pipemap.imagesets import write_image_set
+from pipemap.imagesets import RobotNotes, write_image_set
 
 __all__ = ["run_sim"]
 
@@ -41,11 +40,10 @@ def _info(pose: object, node: str) -> dict[str, str]:
     return info
 
 
-def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float):  # type: ignore[no-untyped-def]
-    from pipemap.localizer import ImageSet
+def _gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float) -> Any:
+    from pipemap.recorder.online import gray_set
 
-    gray = np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images])
-    return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
+    return gray_set(images, fov_rad, camera_angle_rad)
 
 
 def _earlier_sweeps(folder: Path) -> list[Path]:
@@ -117,26 +115,52 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
 
 
 def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  # type: ignore[no-untyped-def]
-    """The full exploration by the sensor-driven controller; sweeps are kept whatever ends it."""
+    """The full exploration by the sensor-driven controller; sweeps are kept whatever
+    ends it. With ``--explore map`` the localizer runs online and the robot explores
+    its map; each sweep's ``sweep.txt`` then holds its exits and departure too."""
+    from pipemap.localizer import Localizer
+    from pipemap.recorder.online import Explore, OnlineLocalizer, make_policy
     from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
+    from pipemap.sim.stream import NodeDeparture, NodeExits, SimRecord
     from pipemap.sim.world import World
+
+    explore = Explore(args.explore)
+    online = OnlineLocalizer(Localizer(), camera.fov_rad)
+    notes: dict[int, RobotNotes] = {}
+
+    def sink(record: SimRecord) -> None:
+        if explore is Explore.MAP:
+            online(record)
+        if isinstance(record, NodeExits):
+            notes[record.visit_id] = RobotNotes(record.exits_rad, None, record.odometer_m)
+        elif isinstance(record, NodeDeparture) and record.visit_id in notes:
+            n = notes[record.visit_id]
+            notes[record.visit_id] = RobotNotes(n.exits_rad, record.exit_rad, n.odometer_m)
 
     with World(network, seed=args.seed) as world:
         config = ExplorerConfig(images_per_sweep=args.images, align_sweeps=args.align_sweeps)
-        result = autonomous_run(world, camera, args.seed, start=args.start, config=config)
+        policy = make_policy(explore, online, config.start_radius_m, config.drift_per_m)
+        result = autonomous_run(
+            world, camera, args.seed, start=args.start, config=config, sink=sink, policy=policy
+        )
     for index, sweep in enumerate(result.sweeps, start=1):
         info = _info(sweep.start_pose, sweep.true_node)
-        write_image_set(target / f"{index:04d}", sweep.images, info, sweep.camera_angle_rad)
+        folder = target / f"{index:04d}"
+        write_image_set(folder, sweep.images, info, sweep.camera_angle_rad, notes.get(index))
     visited = {s.true_node for s in result.sweeps} - {"?"}
+    path = [s.true_node for s in result.sweeps]
+    pipes = {frozenset((p.a, p.b)) for p in network.pipes}
+    driven = len({frozenset(ab) for ab in zip(path, path[1:], strict=False)} & pipes)
     # The robot believes it is done; the simulator knows whether it covered the network.
-    covered = len(visited) == len(network.nodes)
+    covered = len(visited) == len(network.nodes) and driven == len(pipes)
     status = result.status.value
     if result.status is RunStatus.FINISHED and not covered:
-        status = "stopped early: not every node was visited"
+        status = "stopped early: not every node and pipe was visited"
     out.write(
-        f"network {args.network}, condition autonomous: {len(result.sweeps)} sweeps at "
-        f"{len(visited)}/{len(network.nodes)} nodes, {result.distance_m:.2f} m in "
-        f"{result.duration_ns / 1e9:.0f} s simulated, {status}\n"
+        f"network {args.network}, condition autonomous, explore {explore.value}: "
+        f"{len(result.sweeps)} sweeps at {len(visited)}/{len(network.nodes)} nodes "
+        f"({driven}/{len(pipes)} pipes), "
+        f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, {status}\n"
     )
     return 0 if result.status is RunStatus.FINISHED and covered else 1
 

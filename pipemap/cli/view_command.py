@@ -208,8 +208,9 @@ class _Child:
                     pickle.dump(_SPOOLED, pipe, protocol=_PROTOCOL)
                     pipe.flush()
                     done = replay(source, config(), progress_printer(err))
-                    # The view needs the decisions, not the visits' image sets.
-                    payload: Any = dataclasses.replace(done, visit_sets={})
+                    # The view needs the decisions, not the visits' image sets or the
+                    # localizer's database of junctions.
+                    payload: Any = dataclasses.replace(done, visit_sets={}, localizer=None)
                     status = 0
                 except BaseException as exc:  # noqa: BLE001  (the parent reports it)
                     payload = exc

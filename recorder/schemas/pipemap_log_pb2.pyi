@@ -105,26 +105,36 @@ class SweepCommand(_message.Message):
     def __init__(self, time_ns: _Optional[int] = ..., phase: _Optional[_Union[SweepCommand.Phase, str]] = ..., sweep_id: _Optional[int] = ..., visit_id: _Optional[int] = ..., image_index: _Optional[int] = ..., image_count: _Optional[int] = ..., camera_angle_rad: _Optional[float] = ..., fov_rad: _Optional[float] = ..., probe: bool = ..., probe_kind: _Optional[str] = ..., probe_yaw_rad: _Optional[float] = ..., probe_forward_m: _Optional[float] = ..., probe_left_m: _Optional[float] = ...) -> None: ...
 
 class NodeEvent(_message.Message):
-    __slots__ = ("time_ns", "kind", "visit_id", "exits", "exit_rad")
+    __slots__ = ("time_ns", "kind", "visit_id", "exits", "exit_rad", "exits_rad", "x_estimate_m", "y_estimate_m", "odometer_m")
     class Kind(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
         __slots__ = ()
         KIND_UNSPECIFIED: _ClassVar[NodeEvent.Kind]
         ARRIVAL: _ClassVar[NodeEvent.Kind]
         DEPARTURE: _ClassVar[NodeEvent.Kind]
+        EXITS: _ClassVar[NodeEvent.Kind]
     KIND_UNSPECIFIED: NodeEvent.Kind
     ARRIVAL: NodeEvent.Kind
     DEPARTURE: NodeEvent.Kind
+    EXITS: NodeEvent.Kind
     TIME_NS_FIELD_NUMBER: _ClassVar[int]
     KIND_FIELD_NUMBER: _ClassVar[int]
     VISIT_ID_FIELD_NUMBER: _ClassVar[int]
     EXITS_FIELD_NUMBER: _ClassVar[int]
     EXIT_RAD_FIELD_NUMBER: _ClassVar[int]
+    EXITS_RAD_FIELD_NUMBER: _ClassVar[int]
+    X_ESTIMATE_M_FIELD_NUMBER: _ClassVar[int]
+    Y_ESTIMATE_M_FIELD_NUMBER: _ClassVar[int]
+    ODOMETER_M_FIELD_NUMBER: _ClassVar[int]
     time_ns: int
     kind: NodeEvent.Kind
     visit_id: int
     exits: int
     exit_rad: float
-    def __init__(self, time_ns: _Optional[int] = ..., kind: _Optional[_Union[NodeEvent.Kind, str]] = ..., visit_id: _Optional[int] = ..., exits: _Optional[int] = ..., exit_rad: _Optional[float] = ...) -> None: ...
+    exits_rad: _containers.RepeatedScalarFieldContainer[float]
+    x_estimate_m: float
+    y_estimate_m: float
+    odometer_m: float
+    def __init__(self, time_ns: _Optional[int] = ..., kind: _Optional[_Union[NodeEvent.Kind, str]] = ..., visit_id: _Optional[int] = ..., exits: _Optional[int] = ..., exit_rad: _Optional[float] = ..., exits_rad: _Optional[_Iterable[float]] = ..., x_estimate_m: _Optional[float] = ..., y_estimate_m: _Optional[float] = ..., odometer_m: _Optional[float] = ...) -> None: ...
 
 class ProbeResult(_message.Message):
     __slots__ = ("kind", "similarity", "improved")
@@ -137,7 +147,7 @@ class ProbeResult(_message.Message):
     def __init__(self, kind: _Optional[str] = ..., similarity: _Optional[float] = ..., improved: bool = ...) -> None: ...
 
 class Decision(_message.Message):
-    __slots__ = ("time_ns", "visit_id", "node", "known", "candidate", "similarity", "margin", "image_shift", "pixel_shift", "rotation_rad", "rotation_pinhole_rad", "probes", "threshold")
+    __slots__ = ("time_ns", "visit_id", "node", "known", "candidate", "similarity", "margin", "image_shift", "pixel_shift", "rotation_rad", "rotation_pinhole_rad", "probes", "threshold", "exit_ports", "arrival_port", "rejected")
     TIME_NS_FIELD_NUMBER: _ClassVar[int]
     VISIT_ID_FIELD_NUMBER: _ClassVar[int]
     NODE_FIELD_NUMBER: _ClassVar[int]
@@ -151,6 +161,9 @@ class Decision(_message.Message):
     ROTATION_PINHOLE_RAD_FIELD_NUMBER: _ClassVar[int]
     PROBES_FIELD_NUMBER: _ClassVar[int]
     THRESHOLD_FIELD_NUMBER: _ClassVar[int]
+    EXIT_PORTS_FIELD_NUMBER: _ClassVar[int]
+    ARRIVAL_PORT_FIELD_NUMBER: _ClassVar[int]
+    REJECTED_FIELD_NUMBER: _ClassVar[int]
     time_ns: int
     visit_id: int
     node: int
@@ -164,7 +177,10 @@ class Decision(_message.Message):
     rotation_pinhole_rad: float
     probes: _containers.RepeatedCompositeFieldContainer[ProbeResult]
     threshold: float
-    def __init__(self, time_ns: _Optional[int] = ..., visit_id: _Optional[int] = ..., node: _Optional[int] = ..., known: bool = ..., candidate: _Optional[int] = ..., similarity: _Optional[float] = ..., margin: _Optional[float] = ..., image_shift: _Optional[int] = ..., pixel_shift: _Optional[float] = ..., rotation_rad: _Optional[float] = ..., rotation_pinhole_rad: _Optional[float] = ..., probes: _Optional[_Iterable[_Union[ProbeResult, _Mapping]]] = ..., threshold: _Optional[float] = ...) -> None: ...
+    exit_ports: _containers.RepeatedScalarFieldContainer[int]
+    arrival_port: int
+    rejected: _containers.RepeatedScalarFieldContainer[int]
+    def __init__(self, time_ns: _Optional[int] = ..., visit_id: _Optional[int] = ..., node: _Optional[int] = ..., known: bool = ..., candidate: _Optional[int] = ..., similarity: _Optional[float] = ..., margin: _Optional[float] = ..., image_shift: _Optional[int] = ..., pixel_shift: _Optional[float] = ..., rotation_rad: _Optional[float] = ..., rotation_pinhole_rad: _Optional[float] = ..., probes: _Optional[_Iterable[_Union[ProbeResult, _Mapping]]] = ..., threshold: _Optional[float] = ..., exit_ports: _Optional[_Iterable[int]] = ..., arrival_port: _Optional[int] = ..., rejected: _Optional[_Iterable[int]] = ...) -> None: ...
 
 class TrueSweep(_message.Message):
     __slots__ = ("time_ns", "sweep_id", "visit_id", "node", "x_m", "y_m", "z_m", "yaw_rad")

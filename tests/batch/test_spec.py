@@ -31,7 +31,7 @@ def test_the_grid_is_the_cartesian_product_with_record_defaults() -> None:
     spec = parse_spec(SMALL)
     assert len(spec.points) == 8 and spec.recordings() == 4
     first = spec.points[0]
-    assert first == RunPoint("paper", 0, "S", "autonomous", 32, 6, True, "default", 0.36)
+    assert first == RunPoint("paper", 0, "S", "autonomous", 32, 6, True, "map", "default", 0.36)
     # network outermost, the scoring keys innermost: a recording's runs are neighbours
     assert [p.rule for p in spec.points[:2]] == ["default", "paper"]
     assert [(p.network, p.seed) for p in spec.points[::2]] == [
@@ -54,6 +54,7 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
         "resolution": 400,
         "images": 6,
         "align_sweeps": True,
+        "explore": "map",
         "rule": "default",
         "threshold": 0.36,
     }
@@ -61,11 +62,23 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
 
 
 def test_run_ids_are_stable_names_of_the_settings() -> None:
-    point = RunPoint("random:8", 3, "n2", "noise", 64, 9, False, "no-verify", 0.33)
-    assert point.run_id == "random8-seed3-n2-noise-64px-9img-straight-no-verify-t0.33"
+    point = RunPoint("random:8", 3, "n2", "noise", 64, 9, False, "map", "no-verify", 0.33)
+    assert point.run_id == "random8-seed3-n2-noise-64px-9img-straight-map-no-verify-t0.33"
     # The default start is the entry, named: leaving it out or naming it is one run.
     named = parse_spec('[grid]\nstart = ["S"]\n').points[0]
     assert named.run_id == parse_spec("[grid]\n").points[0].run_id
+
+
+def test_explore_is_a_recording_setting_handed_to_record() -> None:
+    from pipemap.recorder import Explore
+
+    spec = parse_spec('[grid]\nexplore = ["map", "right-hand"]\n')
+    assert [p.explore for p in spec.points] == ["map", "right-hand"]
+    assert spec.recordings() == 2  # a different walk: a different recording
+    assert [p.record_settings().explore for p in spec.points] == [Explore.MAP, Explore.RIGHT_HAND]
+    assert "--explore right-hand" in spec.points[1].commands()[0]
+    with pytest.raises(SpecError, match="unknown exploration 'left-hand'"):
+        parse_spec('[grid]\nexplore = ["left-hand"]\n')
 
 
 def test_grids_are_joined_and_shared_runs_made_once() -> None:
@@ -74,11 +87,11 @@ def test_grids_are_joined_and_shared_runs_made_once() -> None:
 
 
 def test_the_commands_rebuild_the_run() -> None:
-    point = RunPoint("grid:3x3", 1, "S", "perfect", 96, 6, False, "paper", 0.36)
+    point = RunPoint("grid:3x3", 1, "S", "perfect", 96, 6, False, "map", "paper", 0.36)
     record, score = point.commands()
     assert record == (
         "pipemap record --network grid:3x3 --seed 1 --start S --condition perfect "
-        "--resolution 96 --images 6 --no-align-sweeps -o run.mcap"
+        "--resolution 96 --images 6 --no-align-sweeps --explore map -o run.mcap"
     )
     assert score == "pipemap score --no-two-view --allow-repeat run.mcap --threshold 0.36 --json"
 

@@ -84,7 +84,7 @@ def test_a_lost_visit_breaks_the_path_and_adds_no_edge() -> None:
     m.visit(0)
     m.visit(1)
     assert m.previous == 1
-    m.lose_track()  # the visit after 1 was lost: 2 need not be 1's neighbour
+    m.new_traversal()  # the visit after 1 was lost: 2 need not be 1's neighbour
     assert m.previous is None
     assert m.visit(2) is None
     assert m.visit(0) == MapEdge(2, 0, 2)  # back on track: edges again
@@ -100,7 +100,7 @@ def test_after_a_lost_visit_the_last_junction_may_be_recognised_again() -> None:
     localizer = Localizer(LocalizerConfig(distinct_consecutive=True))
     localizer.map.visit(0)
     assert localizer._excluded() == 0
-    localizer.map.lose_track()
+    localizer.map.new_traversal()
     assert localizer._excluded() is None
 
 
@@ -162,8 +162,9 @@ def test_edges_are_in_label_order_not_node_order() -> None:
 def test_graph_is_a_copy_with_labels() -> None:
     m = _built([0, 1, 2])
     g = m.graph
-    assert g.edges[0, 1]["label"] == 1
-    assert g.edges[2, 1]["label"] == 2
+    # A multigraph keyed by label: two pipes may join the same two junctions.
+    assert g.edges[0, 1, 1]["label"] == 1
+    assert g.edges[2, 1, 2]["label"] == 2
     g.add_edge(0, 2, label=99)
     g.add_node(7)
     assert m.node_count == 3
@@ -185,8 +186,11 @@ def test_tree_exploration() -> None:
     assert [e for e in added if e is not None] == TREE_EDGES
     assert [i for i, e in enumerate(added) if e is not None] == [1, 2, 4, 5, 7, 9]
     assert m.to_dict() == {
-        "nodes": [{"id": i} for i in range(7)],
-        "edges": [{"u": e.u, "v": e.v, "label": e.label} for e in TREE_EDGES],
+        "nodes": [{"id": i, "ports": []} for i in range(7)],
+        "edges": [
+            {"u": e.u, "u_port": None, "v": e.v, "v_port": None, "label": e.label, "length_m": None}
+            for e in TREE_EDGES
+        ],
     }
 
 
@@ -196,14 +200,14 @@ def test_tree_exploration() -> None:
 def test_to_dict_structure() -> None:
     d = _built([0, 1, 2, 1]).to_dict()
     assert list(d) == ["nodes", "edges"]
-    assert d["nodes"] == [{"id": 0}, {"id": 1}, {"id": 2}]
-    assert d["edges"] == [{"u": 0, "v": 1, "label": 1}, {"u": 1, "v": 2, "label": 2}]
+    assert d["nodes"] == [{"id": 0, "ports": []}, {"id": 1, "ports": []}, {"id": 2, "ports": []}]
+    assert [(e["u"], e["v"], e["label"]) for e in d["edges"]] == [(0, 1, 1), (1, 2, 2)]
     for node in d["nodes"]:
-        assert list(node) == ["id"]
+        assert list(node) == ["id", "ports"]
         assert type(node["id"]) is int
     for edge in d["edges"]:
-        assert list(edge) == ["u", "v", "label"]
-        assert all(type(edge[k]) is int for k in edge)
+        assert list(edge) == ["u", "u_port", "v", "v_port", "label", "length_m"]
+        assert all(type(edge[k]) is int for k in ("u", "v", "label"))
 
 
 def test_to_json_is_deterministic_and_parses() -> None:
@@ -313,6 +317,13 @@ def test_map_document_structure() -> None:
         "rotation_two_view_rad": None,
         "two_view_inliers": None,
         "probes": [],
+        "exits_rad": None,
+        "exit_ports": None,
+        "arrival_port": None,
+        "departure_port": None,
+        "port_residual_rad": None,
+        "rejected": [],
+        "conflict": None,
     }
     assert second["probes"] == [{"kind": "rotate", "similarity": 0.2, "improved": True}]
     assert third["probes"] == [{"kind": "forward", "similarity": None, "improved": False}]
@@ -399,3 +410,146 @@ def test_dumps_document_rejects_nan_in_margin_and_probes() -> None:
     d = _decision(0, False, 0.5, None, probes=(probe,))
     with pytest.raises(ValueError):
         dumps_document(map_document(_built([0]), [("x", d)]))
+
+
+# --- ports ----------------------------------------------------------------------------
+
+#: Port angles of a T (behind, left, right) and of a dead end.
+TEE = (math.pi, math.pi / 2, -math.pi / 2)
+DEAD_END = (math.pi,)
+
+
+def _ported() -> TopoMap:
+    """S (dead end) -> A (T, in by port 0) -> B (dead end) -> back to A by port 2."""
+    m = TopoMap()
+    m.visit(0, DEAD_END, None, 0.0)
+    m.depart(0)
+    m.visit(1, TEE, 0, 1.5)
+    m.depart(2)
+    m.visit(2, DEAD_END, 0, 2.6)
+    m.depart(0)
+    m.visit(1, None, 2, 3.7)
+    return m
+
+
+def test_edges_join_ports_and_carry_the_driven_length() -> None:
+    m = _ported()
+    assert m.edges() == [
+        MapEdge(0, 1, 1, u_port=0, v_port=0, length_m=1.5),
+        MapEdge(1, 2, 2, u_port=2, v_port=0, length_m=pytest.approx(1.1)),  # type: ignore[arg-type]
+    ]
+    assert m.ports(1) == TEE
+    assert m.edge_at(1, 2) == m.edges()[1]
+    assert m.edge_at(1, 1) is None
+    assert m.has_ports
+
+
+def test_untraversed_ports_are_those_never_arrived_or_left_by() -> None:
+    m = _ported()
+    assert m.untraversed(0) == []
+    assert m.untraversed(1) == [1]
+    assert m.untraversed(2) == []
+    assert [(v.node, v.arrival_port, v.departure_port) for v in m.visit_records] == [
+        (0, None, 0),
+        (1, 0, 2),
+        (2, 0, 0),
+        (1, 2, None),
+    ]
+
+
+def test_two_pipes_between_the_same_junctions_are_two_edges() -> None:
+    m = TopoMap()
+    m.visit(0, TEE)
+    m.depart(1)
+    m.visit(1, TEE, 0)
+    m.depart(2)
+    added = m.visit(0, None, 2)
+    assert added is not None and (added.u_port, added.v_port) == (2, 2)
+    assert len(m.edges()) == 2
+    assert m.graph.number_of_edges() == 2
+
+
+def test_a_pipe_end_joined_elsewhere_is_a_conflict_and_adds_no_edge() -> None:
+    m = _ported()
+    m.depart(1)
+    m.visit(3, DEAD_END, 0)  # a new junction 3 beyond A's port 1
+    m.depart(0)
+    # Back at A, but by port 2, which already leads to B; and 3's only pipe leads to
+    # A's port 1: the map says otherwise at both ends. The first end is named.
+    assert m.visit(1, None, 2) is None
+    conflict = m.visit_records[-1].conflict
+    assert conflict == "port 0 of node 3 already leads to port 1 of node 1, not to port 2 of node 1"
+    assert len(m.edges()) == 3
+
+
+def test_ports_are_checked() -> None:
+    m = TopoMap()
+    m.visit(0, DEAD_END)
+    with pytest.raises(ValueError, match="no port 1"):
+        m.depart(1)
+    with pytest.raises(ValueError, match="no port 3"):
+        m.visit(1, TEE, 3)
+    with pytest.raises(ValueError, match="no visit"):
+        TopoMap().depart(0)
+
+
+def test_a_new_traversal_joins_nothing_to_the_last_visit() -> None:
+    m = _ported()
+    assert m.previous == 1
+    m.new_traversal()
+    assert m.previous is None
+    assert m.visit(0) is None
+    assert len(m.edges()) == 2
+
+
+def test_ports_in_the_document_and_from_it() -> None:
+    m = _ported()
+    d = m.to_dict()
+    assert d["nodes"][1] == {
+        "id": 1,
+        "ports": [
+            {"port": 0, "angle_rad": round(math.pi, 6)},
+            {"port": 1, "angle_rad": round(math.pi / 2, 6)},
+            {"port": 2, "angle_rad": round(-math.pi / 2, 6)},
+        ],
+    }
+    assert d["edges"][0] == {
+        "u": 0,
+        "u_port": 0,
+        "v": 1,
+        "v_port": 0,
+        "label": 1,
+        "length_m": 1.5,
+    }
+    loaded = TopoMap.from_dict(json.loads(m.to_json()))
+    assert loaded.to_dict() == d
+    assert loaded.has_ports
+    assert loaded.untraversed(1) == [0, 1, 2]  # a loaded map has no traversals
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda d: d.pop("edges"), "no list of nodes"),
+        (lambda d: d["nodes"].reverse(), "in id order"),
+        (lambda d: d["nodes"][1]["ports"].pop(0), "port 0 is not"),
+        (lambda d: d["nodes"][1]["ports"][0].update(angle_rad="x"), "port 0 is not"),
+        (lambda d: d["edges"][0].update(v=9), "names node 9"),
+        (lambda d: d["edges"][0].update(v_port=5), "has no port 5"),
+        (lambda d: d["edges"][1].update(u_port=0), "joined twice"),
+        (lambda d: d["edges"][0].update(label="one"), "label"),
+        (lambda d: d["edges"][0].update(length_m=-1), "length_m"),
+        (lambda d: d["edges"].append(dict(d["edges"][0])), "joined twice"),
+    ],
+)
+def test_a_malformed_document_is_refused_with_the_reason(change, message: str) -> None:  # type: ignore[no-untyped-def]
+    d = json.loads(_ported().to_json())
+    change(d)
+    with pytest.raises(ValueError, match=message):
+        TopoMap.from_dict(d)
+
+
+def test_not_a_document_is_refused() -> None:
+    for bad in ([], "map", {"nodes": {}, "edges": []}):
+        with pytest.raises(ValueError, match="map document"):
+            TopoMap.from_dict(bad)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import signal
@@ -71,6 +72,35 @@ def test_a_run_logs_every_stream(recorded_run: Path) -> None:
     assert contents.metadata[METADATA_RESULT]["status"] == "finished"
 
 
+def test_each_visit_logs_its_exit_scan_and_the_decision_its_ports(recorded_run: Path) -> None:
+    contents = read_log(recorded_run, keep=lambda t: t in (Topic.NODE, Topic.DECISION))
+    nodes = [
+        schemas.NodeEvent.FromString(m.data) for m in contents.messages if m.topic == Topic.NODE
+    ]
+    scans = [n for n in nodes if n.kind == schemas.NodeEvent.EXITS]
+    # One scan per visit, between its arrival and its departure: S A B A C D C F C E C A S.
+    assert [len(n.exits_rad) for n in scans] == [1, 3, 1, 3, 4, 1, 4, 1, 4, 1, 4, 3, 1]
+    order = [(n.visit_id, n.kind) for n in nodes]
+    for visit in range(1, 13):
+        a = order.index((visit, schemas.NodeEvent.ARRIVAL))
+        e = order.index((visit, schemas.NodeEvent.EXITS))
+        d = order.index((visit, schemas.NodeEvent.DEPARTURE))
+        assert a < e < d
+    odometer = [n.odometer_m for n in scans]
+    assert odometer == sorted(odometer) and 13.0 < odometer[-1] < 15.0
+    assert all(-math.pi <= e <= math.pi for n in scans for e in n.exits_rad)
+    decisions = [
+        schemas.Decision.FromString(m.data) for m in contents.messages if m.topic == Topic.DECISION
+    ]
+    assert [sorted(d.exit_ports) for d in decisions] == [
+        list(range(len(n.exits_rad))) for n in scans
+    ]
+    assert not decisions[0].HasField("arrival_port")
+    assert all(d.arrival_port == 0 for d in decisions[1:] if not d.known)
+    assert contents.metadata[METADATA_RUN]["explore"] == "map"
+    assert contents.metadata[METADATA_RUN]["format_version"] == "2"
+
+
 def test_truth_and_online_decisions_live_apart_from_the_robot(recorded_run: Path) -> None:
     contents = read_log(recorded_run)
     truth_types = {"pipemap.TrueSweep", "foxglove.FrameTransform", "foxglove.SceneUpdate"}
@@ -95,7 +125,7 @@ def test_info_describes_the_log(recorded_run: Path) -> None:
     assert doc["integrity"] == "ok" and doc["sweeps"] == 13 and doc["visits"] == 13
     meta = doc["metadata"]
     assert meta["network"] == "paper" and meta["seed"] == 3  # numbers as numbers
-    assert meta["resolution_px"] == 32 and meta["align_sweeps"] is True
+    assert meta["resolution_px"] == 64 and meta["align_sweeps"] is True
     assert isinstance(meta["threshold"], float) and isinstance(meta["simulator"], dict)
     result = meta["result"]
     assert result["status"] == "finished"
@@ -291,3 +321,34 @@ def test_a_disk_that_fills_keeps_every_complete_sweep_readable(small_disk: Path)
     assert doc["integrity"] == "truncated" and doc["sweeps"] >= 1
     replayed = pipemap("replay", str(target))
     assert replayed.returncode == 0 and len(json.loads(replayed.stdout)["visits"]) == doc["sweeps"]
+
+
+@pytest.mark.parametrize(
+    "extra, explore", [((), "map"), (("--explore", "right-hand"), "right-hand")]
+)
+def test_record_hands_the_exploration_policy_to_the_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, extra: tuple[str, ...], explore: str
+) -> None:
+    import pipemap.recorder as package
+    from pipemap.cli import main
+    from pipemap.recorder import session
+    from pipemap.sim.network import build_network
+
+    seen = []
+
+    def fake_record_run(  # type: ignore[no-untyped-def]
+        path, settings, network, version, progress=None, overwrite=False, observer=None
+    ):
+        seen.append(settings)
+        path.write_bytes(b"")
+        return session.RecordResult("finished", True, 0, 0, 0.0, 0, 0, frozenset(), 7)
+
+    monkeypatch.setattr(session, "record_run", fake_record_run)
+    # ``pipemap.recorder`` loads it lazily and keeps it once loaded.
+    monkeypatch.setattr(package, "record_run", fake_record_run, raising=False)
+    status = main(["record", "--network", "paper", *extra, "-o", str(tmp_path / "x.mcap")])
+    assert status == 0
+    assert [s.explore.value for s in seen] == [explore]
+    assert seen[0].metadata(build_network("paper"), "t")["explore"] == explore
+    done = pipemap("record", "--network", "paper", "--explore", "left-hand", "-o", "x.mcap")
+    assert done.returncode == 2 and "--explore" in done.stderr

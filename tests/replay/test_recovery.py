@@ -131,7 +131,11 @@ def test_info_names_the_damaged_chunk_and_what_it_held(
     assert doc["integrity"] == "corrupt"
     [damage] = doc["damage"]
     assert (damage["chunk"], damage["chunks"], damage["offset"]) == (2, 14, positions[1][0])
-    assert damage["problem"] == "CRC mismatch"
+    # One bit flipped in the compressed records: zstd or the chunk's CRC catches it,
+    # depending on where the bit falls.
+    assert damage["problem"] == "CRC mismatch" or damage["problem"].startswith(
+        "zstd data does not decompress"
+    )
     assert damage["lost"] == dict(Counter(topic for topic, _, _ in chunks[1]))
     times = [t for _, t, _ in chunks[1]]
     assert damage["start_s"] == min(times) / 1e9 and damage["end_s"] == max(times) / 1e9

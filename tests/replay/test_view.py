@@ -281,7 +281,7 @@ def test_record_view_save_writes_the_view_beside_the_log(
 ) -> None:
     log = tmp_path / "run.mcap"
     status, stdout, stderr = run(
-        ["record", "--network", "paper", "--resolution", "32", "-o", str(log), "--view", "--save"],
+        ["record", "--network", "paper", "--resolution", "64", "-o", str(log), "--view", "--save"],
         capfd,
     )
     assert status == 0, stderr

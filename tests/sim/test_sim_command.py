@@ -146,12 +146,25 @@ def test_autonomous_run_saves_a_sweep_at_every_visit(
     tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
     target = tmp_path / "auto"
-    argv = ["sim", "--network", "paper", "--condition", "autonomous", "--resolution", "32"]
+    # 64 px: at 32 px the paper's similarity merges dead ends and the map-driven robot
+    # stops on its inconsistent map.
+    argv = ["sim", "--network", "paper", "--condition", "autonomous", "--resolution", "64"]
     status, out, err = _run([*argv, "--save-sweeps", str(target)], capfd)
     assert status == 0, err
     assert "finished" in out and "7/7 nodes" in out
     nodes = [read_info(f)["node"] for f in sorted(target.iterdir())]
     assert nodes == list("SABACDCFCECAS")
+    assert "explore map" in out
+    # sweep.txt holds what the robot noted, so `pipemap map` over the folders gives
+    # the map its ports, as a replay of the run's log would.
+    notes = (target / "0002" / "sweep.txt").read_text()
+    assert "exits: " in notes and "departure: " in notes and "odometer_m: " in notes
+    status, out, err = _run(["map", *map(str, sorted(target.iterdir())), "--json"], capfd)
+    assert status == 0, err
+    doc = json.loads(out)
+    assert [len(n["ports"]) for n in doc["nodes"]][:3] == [1, 3, 1]
+    assert all(e["u_port"] is not None and e["v_port"] is not None for e in doc["edges"])
+    assert doc["visits"][1]["arrival_port"] == 0
 
 
 def test_images_per_sweep_is_configurable(
@@ -177,7 +190,10 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     from pipemap.sim.controller import ExplorationResult, RunStatus
     from pipemap.sim.episode import Pose, Sweep
 
-    def one_sweep_run(world, camera, seed, start=None, config=None):  # type: ignore[no-untyped-def]
+    policies = []
+
+    def one_sweep_run(world, camera, seed, start=None, config=None, sink=None, policy=None):  # type: ignore[no-untyped-def]
+        policies.append(policy)
         sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8), Pose(0.0, 0.0, 0.05), "S")
         return ExplorationResult(RunStatus.FINISHED, sweeps=[sweep], distance_m=1.0)
 
@@ -187,3 +203,12 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     assert status == 1
     assert "1/7 nodes" in out and "stopped early" in out
     assert (tmp_path / "early" / "0001" / "info.txt").is_file()  # what was produced is kept
+    # --explore hands the controller its policy: the map's by default, or the paper's.
+    status, out, _ = _run(
+        [*argv, "--explore", "right-hand", "--save-sweeps", str(tmp_path / "rh")], capfd
+    )
+    from pipemap.recorder.online import MapPolicy
+    from pipemap.sim.policy import RightHandPolicy
+
+    assert [type(p) for p in policies] == [MapPolicy, RightHandPolicy]
+    assert "explore right-hand" in out

@@ -1,0 +1,271 @@
+"""Map-driven exploration (:mod:`localizer.explore`) and routes (:mod:`localizer.routes`),
+on the simulator's networks walked without images: a stand-in localizer that knows
+where the robot is (or is told to be wrong) feeds the real map and explorer."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import pytest
+
+from pipemap.localizer import (
+    Decision,
+    ExploreConfig,
+    ExploreEnd,
+    MapExplorer,
+    RouteStep,
+    TopoMap,
+    clockwise_ports,
+    describe_step,
+    match_ports,
+    nearest_exit,
+    nearest_route,
+    plan_route,
+    route_length_m,
+)
+from pipemap.sim.network import Network, build_network
+
+
+@dataclass
+class Walk:
+    """A robot on a network, its map built by a stand-in localizer.
+
+    ``wrong`` makes the localizer err: ``"new"`` declares every visit new, ``"merge"``
+    takes every junction for the first known junction with as many pipes.
+    """
+
+    network: Network
+    start: str | None = None
+    wrong: str | None = None
+    config: ExploreConfig = field(default_factory=ExploreConfig)
+    topomap: TopoMap = field(default_factory=TopoMap)
+    path: list[str] = field(default_factory=list)
+    odometer_m: float = 0.0
+    #: Dead reckoning drifts east by this much per metre driven.
+    drift_per_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.explorer = MapExplorer(self.config)
+        self.first_heading: dict[int, float] = {}
+        self.label_of: dict[int, str] = {}
+        self.node_of: dict[str, int] = {}
+
+    def _decide(self, label: str, heading: float, exits: list[float]) -> Decision:
+        m = self.topomap
+        node = None if self.wrong == "new" else self.node_of.get(label)
+        if self.wrong == "merge":
+            node = next(
+                (n for n in range(m.node_count) if len(m.ports(n) or ()) == len(exits)), node
+            )
+        arrival = None
+        if node is None:
+            node = m.node_count
+            ports, exit_ports = clockwise_ports(exits)
+            self.first_heading[node] = heading
+            self.node_of.setdefault(label, node)
+            known = False
+        else:
+            ports = None
+            rotation = self.first_heading[node] - heading
+            exit_ports = match_ports(m.ports(node) or (), exits, rotation, 3.0).exit_ports
+            known = True
+        if self.path:
+            behind = nearest_exit(exits, math.pi)
+            arrival = None if behind is None or exit_ports is None else exit_ports[behind]
+        m.visit(node, ports, arrival, self.odometer_m)
+        return Decision(
+            node,
+            known,
+            None,
+            0.0,
+            None,
+            None,
+            exits_rad=tuple(exits),
+            exit_ports=exit_ports,
+            arrival_port=arrival,
+        )
+
+    def run(self, max_visits: int = 500) -> ExploreEnd | None:
+        net = self.network
+        label = self.start if self.start is not None else net.entry
+        heading = net.pipe_headings(label)[net.neighbours(label)[0]] + math.pi
+        for _ in range(max_visits):
+            headings = net.pipe_headings(label)
+            neighbours = net.neighbours(label)
+            exits = [math.remainder(headings[n] - heading, 2 * math.pi) for n in neighbours]
+            decision = self._decide(label, heading, exits)
+            self.path.append(label)
+            node = net.node(label)
+            x = node.x_m + self.drift_per_m * self.odometer_m
+            step = self.explorer.step(self.topomap, decision, x, node.y_m, self.odometer_m)
+            if step.stop is not None:
+                return step.stop
+            assert step.port is not None and decision.exit_ports is not None
+            leave = neighbours[decision.exit_ports.index(step.port)]
+            self.topomap.depart(step.port)
+            self.odometer_m += net.length_m(label, leave)
+            heading = headings[leave]
+            label = leave
+        return None
+
+    def traversals(self) -> list[tuple[str, str]]:
+        return [tuple(sorted(p)) for p in zip(self.path, self.path[1:], strict=False)]  # type: ignore[misc]
+
+
+def _pipes(network: Network) -> set[tuple[str, str]]:
+    return {tuple(sorted((p.a, p.b))) for p in network.pipes}  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    "spec, seed, start",
+    [
+        ("paper", 0, None),
+        ("paper", 0, "C"),
+        ("grid:3x3", 0, None),
+        ("grid:5x5", 0, None),
+        ("random:20", 3, None),
+        ("random:40", 1, None),
+        ("tree:15", 2, None),
+    ],
+)
+def test_every_pipe_is_driven_and_the_robot_ends_at_its_start(
+    spec: str, seed: int, start: str | None
+) -> None:
+    network = build_network(spec, seed=seed)
+    walk = Walk(network, start)
+    assert walk.run() is ExploreEnd.FINISHED
+    driven = walk.traversals()
+    assert set(driven) == _pipes(network)
+    assert walk.path[-1] == walk.path[0]
+    # Trémaux: each pipe at most twice while exploring; the way home crosses each
+    # pipe at most once more.
+    counts = {p: driven.count(p) for p in set(driven)}
+    assert max(counts.values()) <= 3
+    assert len(driven) <= 2 * len(network.pipes) + len(network.nodes)
+    assert walk.topomap.node_count == len(network.nodes)
+    assert len(walk.topomap.edges()) == len(network.pipes)
+    assert walk.explorer.inconsistencies == []
+
+
+def test_on_a_tree_the_walk_is_the_right_hand_tour() -> None:
+    from pipemap.sim.plan import right_hand_tour
+
+    network = build_network("paper")
+    walk = Walk(network)
+    walk.run()
+    assert walk.path == list(right_hand_tour(network).nodes)
+
+
+def test_without_going_home_it_stops_where_the_last_pipe_ends() -> None:
+    network = build_network("paper")
+    walk = Walk(network, config=ExploreConfig(return_home=False))
+    assert walk.run() is ExploreEnd.FINISHED
+    assert walk.path[-1] == "E"  # the last dead end of the right-hand tour
+    assert walk.path == list("SABACDCFCE")
+
+
+@pytest.mark.parametrize("wrong", ["new", "merge"])
+def test_a_wrong_localizer_ends_the_run_as_inconsistent(wrong: str) -> None:
+    network = build_network("grid:4x4")
+    walk = Walk(network, wrong=wrong)
+    assert walk.run() is ExploreEnd.INCONSISTENT
+    assert len(walk.explorer.inconsistencies) == 3
+    assert len(walk.path) < 40
+
+
+def test_one_inconsistency_is_tolerated() -> None:
+    network = build_network("grid:3x3")
+    walk = Walk(network, config=ExploreConfig(max_inconsistencies=1))
+    assert walk.run() is ExploreEnd.FINISHED
+    with pytest.raises(ValueError):
+        ExploreConfig(max_inconsistencies=0)
+
+
+# --- routes -----------------------------------------------------------------------
+
+
+def _explored(spec: str = "grid:3x3") -> tuple[Walk, TopoMap]:
+    walk = Walk(build_network(spec))
+    walk.run()
+    return walk, walk.topomap
+
+
+def test_a_route_follows_ports_to_the_goal() -> None:
+    walk, m = _explored()
+    goal = walk.node_of["r2c2"]
+    route = plan_route(m, 0, goal)
+    assert route is not None
+    assert route[0].node == 0 and route[0].arrive_port is None
+    assert route[-1] == RouteStep(goal, route[-1].arrive_port, None)
+    # Each step leaves by the port whose edge arrives at the next step's port.
+    for here, there in zip(route, route[1:], strict=False):
+        assert here.leave_port is not None
+        edge = m.edge_at(here.node, here.leave_port)
+        assert edge is not None and edge.label == here.edge
+        assert edge.other(here.node, here.leave_port) == (there.node, there.arrive_port)
+    # S, r0c0 .. r2c2: 1 + 4 pipes of 1 m (as driven).
+    assert len(route) == 6
+    assert route_length_m(m, route) == pytest.approx(5.0)
+
+
+def test_route_to_itself_and_unknown_nodes() -> None:
+    _, m = _explored()
+    assert plan_route(m, 3, 3) == [RouteStep(3, None, None)]
+    with pytest.raises(ValueError, match="not in the map"):
+        plan_route(m, 0, 99)
+
+
+def test_no_route_in_a_map_without_port_edges() -> None:
+    m = TopoMap()
+    m.visit(0)
+    m.visit(1)
+    assert plan_route(m, 0, 1) is None
+    assert nearest_route(m, 0, [1]) is None
+
+
+def test_the_nearest_goal_wins_ties_to_the_lowest_node() -> None:
+    walk, m = _explored("paper")
+    a, b, d = walk.node_of["A"], walk.node_of["B"], walk.node_of["D"]
+    found = nearest_route(m, a, [b, d])
+    assert found is not None and found[0] == b
+
+
+def test_steps_read_as_instructions() -> None:
+    assert describe_step(RouteStep(3, 0, 2, 7)) == "at node 3, arriving by port 0, leave by port 2"
+    assert describe_step(RouteStep(0, None, 1, 1)) == "at node 0, leave by port 1"
+    assert describe_step(RouteStep(5, 2, None)) == "arrive at node 5 by port 2"
+    assert describe_step(RouteStep(5, None, None)) == "already at node 5"
+
+
+@pytest.mark.parametrize("limit", [1, 2])
+def test_the_run_stops_at_the_configured_number_of_inconsistencies(limit: int) -> None:
+    walk = Walk(
+        build_network("grid:4x4"), wrong="new", config=ExploreConfig(max_inconsistencies=limit)
+    )
+    assert walk.run() is ExploreEnd.INCONSISTENT
+    assert len(walk.explorer.inconsistencies) == limit
+
+
+def test_the_odometry_tolerance_is_the_configured_one() -> None:
+    # Dead reckoning 5 cm off per metre: within the defaults' 0.3 m plus 5 mm per
+    # metre on paper (13 m), not within a 0.1 m radius that does not grow.
+    drifting = Walk(build_network("paper"), drift_per_m=0.05)
+    assert drifting.run() is ExploreEnd.FINISHED
+    tight = Walk(
+        build_network("paper"),
+        drift_per_m=0.05,
+        config=ExploreConfig(odometry_radius_m=0.1, drift_per_m=0.0),
+    )
+    assert tight.run() is ExploreEnd.INCONSISTENT
+    assert "from where it was by odometry" in tight.explorer.inconsistencies[0]
+    # A radius wider than the network: every new junction lies "at" a known one.
+    wide = Walk(
+        build_network("paper"),
+        config=ExploreConfig(odometry_radius_m=10.0, odometry_limit_m=10.0),
+    )
+    assert wide.run() is ExploreEnd.INCONSISTENT
+    assert "from known junction" in wide.explorer.inconsistencies[0]
+    for bad in ({"odometry_radius_m": -0.1}, {"drift_per_m": -1.0}, {"odometry_limit_m": -1.0}):
+        with pytest.raises(ValueError):
+            ExploreConfig(**bad)  # type: ignore[arg-type]
