@@ -173,6 +173,27 @@ def test_an_unreadable_image_in_a_log_loses_its_sweep_only(
         assert info.returncode == 0 and len(doc["sweeps_skipped"]) == 1
 
 
+def test_an_exit_scan_that_does_not_decode_loses_that_visits_ports_only(
+    tmp_path: Path,
+) -> None:
+    contents = read_log(STORED)
+    scans = [
+        i
+        for i, m in enumerate(contents.messages)
+        if m.topic == Topic.NODE
+        and schemas.NodeEvent.FromString(m.data).kind == schemas.NodeEvent.EXITS
+    ]
+    broken = tmp_path / "bad_scan.mcap"
+    rewrite(STORED, broken, lambda i, _m: b"\x0a\xff\xff\xff\x0f" if i == scans[2] else None)
+    done = pipemap("replay", str(broken))
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
+    assert "1 node event(s) do not decode as pipemap.NodeEvent" in done.stderr
+    visits = json.loads(done.stdout)["visits"]
+    assert len(visits) == 13  # every visit is decided, the third without its exits
+    assert visits[2]["exits_rad"] is None and visits[1]["exits_rad"] is not None
+
+
 def test_a_log_whose_messages_are_not_protobuf_is_read_without_a_traceback(
     recorded_run: Path, tmp_path: Path
 ) -> None:
