@@ -146,6 +146,13 @@ class LocalizerConfig:
     verify: bool = True
     verify_inliers: int = 48
     verify_candidates: int = 4
+    #: The junction the map says the robot's pipe leads to (:meth:`Localizer.expected_node`)
+    #: is recognised with this many inliers (its ports must still fit): the map is
+    #: evidence too. A revisit back out of a dead end, seen from the pipe's mouth, fit
+    #: its junction with 33 inliers at 200 px (``random:17`` seed 7, visit 18) while
+    #: the best other junction fit with 17; distractors reached 20 at most
+    #: (``benchmarks/bench_localizer.py --check-distractors``).
+    expected_inliers: int = 24
     #: A sweep with fewer keypoints is decided by the threshold (a 32 px sweep has
     #: about 25, a 96 px one about 2000).
     verify_min_keypoints: int = 200
@@ -162,8 +169,10 @@ class LocalizerConfig:
             raise LocalizerError(f"probe distance must be >= 0 m, got {self.probe_distance_m}")
         if self.verify and not self.two_view:
             raise LocalizerError("verify decides by the two-view fit: it needs two_view")
-        if self.verify_inliers < 1 or self.verify_candidates < 1:
-            raise LocalizerError("verify_inliers and verify_candidates must be >= 1")
+        if self.verify_inliers < 1 or self.verify_candidates < 1 or self.expected_inliers < 1:
+            raise LocalizerError(
+                "verify_inliers, expected_inliers and verify_candidates must be >= 1"
+            )
         if not 0.0 < self.port_tolerance_rad < math.pi / 2.0:
             raise LocalizerError(
                 f"port tolerance must be in (0, pi/2) rad, got {self.port_tolerance_rad}"
@@ -506,16 +515,19 @@ class Localizer:
         expected = self.expected_node()
         if expected is not None and expected != exclude:
             ranked = [expected, *(i for i in ranked if i != expected)]
-        # A fit with fewer inliers would not count: let it stop as soon as it knows
-        # (so only the junction that fits pays for the tilted refinement).
-        config = replace(
-            self.config.two_view_config,
-            min_inliers=max(self.config.two_view_config.min_inliers, self.config.verify_inliers),
-        )
         for i in ranked:
+            # The map's junction needs fewer inliers than the others (see
+            # ``expected_inliers``). A fit with fewer would not count: let it stop as
+            # soon as it knows (so only the junction that fits pays for the tilted
+            # refinement).
+            needed = self.config.expected_inliers if i == expected else self.config.verify_inliers
+            config = replace(
+                self.config.two_view_config,
+                min_inliers=max(self.config.two_view_config.min_inliers, needed),
+            )
             known = self._features[i].features()
             fit = fit_two_view(features, known, config, matches[i].rotation_rad)
-            if fit is not None and fit.inliers >= self.config.verify_inliers:
+            if fit is not None and fit.inliers >= needed:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
                 if ports is not None and not ports.agrees and self.config.port_check:
                     rejected.append((i, ports.reason))

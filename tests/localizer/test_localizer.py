@@ -866,3 +866,35 @@ def test_the_junction_the_map_expects_is_tried_first() -> None:
 
     d = walk(NoPrior(LocalizerConfig(verify_candidates=1)))
     assert not d.known and [c for c, _ in d.rejected] == [2]
+
+
+@pytest.mark.parametrize("expected_inliers, known", [(24, True), (48, False)])
+def test_the_expected_junction_needs_fewer_inliers(
+    monkeypatch: pytest.MonkeyPatch, expected_inliers: int, known: bool
+) -> None:
+    """Every fit is cut to 30 inliers: below ``verify_inliers`` (48), so only the
+    junction the map expects can be recognised, and only under its own bar."""
+    from pipemap.localizer import localizer as module
+
+    real = module.fit_two_view
+
+    def thirty(query, known_features, config, guess=None):  # type: ignore[no-untyped-def]
+        fit = real(query, known_features, replace(config, min_inliers=12), guess)
+        return None if fit is None else replace(fit, inliers=30)
+
+    monkeypatch.setattr(module, "fit_two_view", thirty)
+    loc = Localizer(LocalizerConfig(expected_inliers=expected_inliers))
+    loc.localize(junction(0), exits_rad=TEE_EXITS)
+    loc.depart(PI / 2)  # port 1
+    assert not loc.localize(junction(1), exits_rad=CORNER_EXITS).known
+    loc.depart(PI)  # back along the pipe it came by: the map expects junction 0
+    assert loc.expected_node() == 0
+    d = loc.localize(junction(0), exits_rad=TEE_EXITS)
+    assert d.known is known and (d.node == 0) is known
+    if known:
+        assert d.two_view is not None and d.two_view.inliers == 30
+
+
+def test_expected_inliers_is_validated() -> None:
+    with pytest.raises(LocalizerError, match="expected_inliers"):
+        LocalizerConfig(expected_inliers=0)

@@ -28,7 +28,9 @@ def test_paper_is_explored_from_every_start(paper_world, start: str) -> None:  #
     # every node and every pipe is visited, and the robot ends where it started.
     planned = [v.node for v in right_hand_tour(paper_world.network, start).visits]
     assert [s.true_node for s in result.sweeps] == planned
-    assert result.distance_m == pytest.approx(13.9, abs=0.4)
+    # Each of the 6.95 m of pipe twice, plus the manoeuvres at junctions: 14.0-14.3 m
+    # measured from the seven starts.
+    assert 13.9 <= result.distance_m <= 1.05 * 13.9
 
 
 def test_heading_estimate_holds_with_a_biased_gyro(paper_world) -> None:  # type: ignore[no-untyped-def]
@@ -146,3 +148,25 @@ def test_sharp_corners_and_straight_pipes_are_left_to_the_widest_circle(
     openings = [math.radians(h) for h in headings]
     here = np.zeros(2)
     assert _axes_crossing(samples, 0.06, walls, here, here, openings, 70.0) is None
+
+
+def test_an_exit_heading_is_where_the_scan_sees_deepest() -> None:
+    """From a robot off the junction's centre an opening's near edge sees farther on
+    one side: the mean of all its open samples leans that way; the mean of its
+    deepest samples looks along the pipe."""
+    from types import SimpleNamespace
+
+    from pipemap.sim.controller import Explorer
+
+    # One opening from 0.2 to 1.0 rad, deepest (the pipe) at 0.7 to 0.9 rad; the
+    # side towards 0.2 sees moderately far (the mouth's near wall, off centre).
+    yaws = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    ranges = np.full(yaws.shape, 0.05)
+    ranges[(yaws > 0.2) & (yaws < 1.0)] = 0.4
+    ranges[(yaws > 0.7) & (yaws < 0.9)] = 2.0
+    samples = list(zip(yaws.tolist(), ranges.tolist(), strict=True))
+    fake = SimpleNamespace(config=ExplorerConfig(), _heading_of=Explorer._heading_of)
+    (lopsided,) = Explorer._openings(fake, samples, 0.0)  # type: ignore[arg-type]
+    (deep,) = Explorer._openings(fake, samples, ExplorerConfig().exit_depth_fraction)  # type: ignore[arg-type]
+    assert abs(lopsided - 0.6) < 0.02  # the middle of the whole opening
+    assert abs(deep - 0.8) < 0.02  # the pipe's axis
