@@ -9,11 +9,10 @@ the truth of each sweep under ``/truth``. The online decisions arrive already ma
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from pipemap.recorder import messages, schemas
 from pipemap.recorder.topics import Topic
-from pipemap.recorder.writer import LogWriter
 from pipemap.sim.episode import Pose
 from pipemap.sim.robot import EncoderReading, ImuReading, RangeReading, RobotSpec
 from pipemap.sim.stream import (
@@ -27,7 +26,21 @@ from pipemap.sim.stream import (
     TruePose,
 )
 
-__all__ = ["LogRecord", "ReadyMessage", "RecordConverter", "SweepDone"]
+__all__ = ["LogRecord", "MessageSink", "ReadyMessage", "RecordConverter", "SweepDone"]
+
+
+class MessageSink(Protocol):
+    """Where a :class:`RecordConverter` writes: a :class:`~pipemap.recorder.writer.LogWriter`,
+    or anything with its three methods (the live view keeps the messages in memory)."""
+
+    def write(self, topic: str, log_time_ns: int, message: Any) -> None:
+        """Serialize ``message`` and write it on ``topic``."""
+
+    def write_serialized(self, topic: str, log_time_ns: int, data: bytes) -> None:
+        """Write an already serialized message on ``topic``."""
+
+    def flush(self) -> None:
+        """Hand what is buffered on (to disk, for a file)."""
 
 
 @dataclass(frozen=True)
@@ -61,9 +74,9 @@ LogRecord = SimRecord | SweepDone | ReadyMessage
 
 
 class RecordConverter:
-    """Writes each record's messages to a :class:`LogWriter`."""
+    """Writes each record's messages to a :class:`MessageSink` (a log writer)."""
 
-    def __init__(self, writer: LogWriter, spec: RobotSpec | None = None) -> None:
+    def __init__(self, writer: MessageSink, spec: RobotSpec | None = None) -> None:
         self.writer = writer
         self.spec = spec if spec is not None else RobotSpec()
 
