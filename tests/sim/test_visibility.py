@@ -9,7 +9,13 @@ import pytest
 
 from pipemap.sim import CameraSpec, World, build_network
 from pipemap.sim.network import Network, Node, Pipe
-from pipemap.sim.visibility import PortalGraph, frustum_arc, visible_parts
+from pipemap.sim.visibility import (
+    PortalGraph,
+    _intersect,
+    _junction_radius_m,
+    frustum_arc,
+    visible_parts,
+)
 
 SMALL = CameraSpec(resolution_px=64)
 ALL_AROUND = (0.0, math.pi)
@@ -61,6 +67,46 @@ def test_the_frustum_arc_is_the_field_of_view_level_and_widens_with_pitch() -> N
     assert frustum_arc(1.0, 0.0, fov) == pytest.approx((1.0, fov / 2.0), abs=1e-5)
     assert frustum_arc(1.0, 0.3, fov)[1] > fov / 2.0
     assert frustum_arc(1.0, 1.2, fov)[1] == math.pi  # steep: every direction
+
+
+def _in_arc(angle: float, arc: tuple[float, float]) -> bool:
+    return arc[1] >= math.pi or abs(math.remainder(angle - arc[0], 2 * math.pi)) <= arc[1]
+
+
+def test_an_intersection_keeps_every_direction_both_arcs_hold() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        a = (rng.uniform(-7, 7), rng.uniform(0, 3.3))
+        b = (rng.uniform(-7, 7), rng.uniform(0, 1.6))
+        both = _intersect(a, b)
+        for angle in rng.uniform(-math.pi, math.pi, 20):
+            if _in_arc(angle, a) and _in_arc(angle, b):
+                assert both is not None and _in_arc(angle, both), (a, b, angle)
+
+
+def test_past_the_junction_radius_no_two_pipes_of_a_node_overlap() -> None:
+    # Points of one pipe's plan strip past the radius lie in no other pipe's strip, for
+    # random junctions down to the network's smallest angle between pipes.
+    rng = np.random.default_rng(1)
+    r = 0.1
+    for _ in range(300):
+        headings = list(rng.uniform(0, 2 * math.pi, rng.integers(2, 5)))
+        gaps = np.diff(sorted(headings + [min(headings) + 2 * math.pi]))
+        if gaps.min() < math.radians(30):
+            continue
+        reach = _junction_radius_m(headings, r)
+        for i, hu in enumerate(headings):
+            u = np.array([math.cos(hu), math.sin(hu)])
+            n = np.array([-u[1], u[0]])
+            s = rng.uniform(reach, reach + 0.5, 200)
+            points = s[:, None] * u + rng.uniform(-r, r, 200)[:, None] * n
+            for j, hv in enumerate(headings):
+                if j == i:
+                    continue
+                v = np.array([math.cos(hv), math.sin(hv)])
+                along, across = points @ v, np.abs(points @ np.array([-v[1], v[0]]))
+                inside = (along >= 0) & (across <= r)
+                assert not inside.any(), (headings, reach)
 
 
 @pytest.fixture(scope="module")
