@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 from pipemap.sim.network import Network
 
-__all__ = ["PortalGraph", "frustum_arc", "visible_parts"]
+__all__ = ["ALL", "PortalGraph", "frustum_arc", "visible_parts"]
 
 #: Widening of every portal and strip, metres: covers the rounding of the meshes.
 MARGIN_M = 1e-3
@@ -40,6 +40,8 @@ _TWO_PI = 2.0 * math.pi
 #: An arc ``(centre_rad, half_width_rad)``; a half width of pi or more is the whole circle.
 Arc = tuple[float, float]
 _FULL: Arc = (0.0, math.pi)
+#: Every direction: the view arc that rules nothing out by the camera's heading.
+ALL: Arc = _FULL
 
 
 def _intersect(a: Arc, b: Arc) -> Arc | None:
@@ -168,7 +170,8 @@ class PortalGraph:
 
 
 def frustum_arc(yaw_rad: float, pitch_rad: float, fov_rad: float) -> Arc:
-    """Plan directions of the points a square camera of ``fov_rad`` can see."""
+    """Plan directions of the points a square camera of ``fov_rad``, turned by
+    ``yaw_rad`` and pitched by ``pitch_rad`` but not rolled, can see."""
     t = math.tan(fov_rad / 2.0)
     denominator = math.cos(pitch_rad) - t * abs(math.sin(pitch_rad))
     if denominator <= 1e-6:

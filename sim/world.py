@@ -260,6 +260,8 @@ class World:
         )
         eye = np.asarray(eye_xyz_m, dtype=np.float64)
         view = pybullet.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), [0.0, 0.0, 1.0])
+        # frustum_arc assumes an unrolled camera: a camera rolled about its axis needs
+        # the whole circle here (visibility.ALL) or a wider arc.
         self._cull(eye_xyz_m, frustum_arc(yaw_rad, pitch_rad, camera.fov_rad))
         proj = pybullet.computeProjectionMatrixFOV(
             fov=math.degrees(camera.fov_rad), aspect=1.0, nearVal=NEAR_M, farVal=FAR_M
