@@ -19,8 +19,9 @@ ring of mesh vertices rendered 100x slower (callers nudge the eye by 0.1 mm).
 
 TinyRenderer draws every body for every image, so before each image the world
 hides (alpha 0: TinyRenderer skips the body) every body no line of sight from the
-eye can reach (:mod:`sim.visibility`); the image stays the same to the bit, and
-its cost follows what is near the camera instead of the whole network. Collision,
+eye can reach (:mod:`sim.visibility`); the image stays the same to the bit (but for
+pixels that look out of the network through a crack between two meshes: see
+docs/culling.md), and its cost follows what is near the camera, not the network. Collision,
 and so the range rays, keeps every body.
 """
 
