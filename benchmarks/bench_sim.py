@@ -10,7 +10,8 @@ real-time factor (simulated seconds per wall second).
 Usage: ``python benchmarks/bench_sim.py [--network NAME] [--resolution PX] [--no-run]``.
 With ``--network`` (``grid:10x10``, ``random:100``, ...) it measures that network
 instead: world build time and the memory it adds (resident set), render time per
-image at the first 12 nodes' centres, and (unless ``--no-run``) an autonomous run
+image at the first 12 nodes' centres with culling off and on (see ``sim/visibility.py``;
+the images are compared), and (unless ``--no-run``) an autonomous run
 at ``--resolution`` with its real-time factor. CPU time (``time.process_time``) is
 printed beside wall time.
 """
@@ -63,16 +64,26 @@ def network_benchmark(name: str, resolution: int, run: bool) -> None:
         f"+{_rss_mib() - rss:.0f} MiB resident"
     )
     camera = CameraSpec(resolution_px=resolution)
-    walls, cpus = [], []
-    for node in network.nodes[:12]:
-        wall, cpu = time.perf_counter(), time.process_time()
-        world.render((node.x_m + 1e-4, node.y_m + 1e-4, 0.05), 0.0, camera)
-        walls.append(time.perf_counter() - wall)
-        cpus.append(time.process_time() - cpu)
-    print(
-        f"render per image at {resolution}x{resolution}: {statistics.median(walls) * 1000:.0f} ms "
-        f"wall, {statistics.median(cpus) * 1000:.0f} ms CPU (median of {len(walls)})"
-    )
+    views = [((n.x_m + 1e-4, n.y_m + 1e-4, 0.05), 0.0) for n in network.nodes[:12]]
+    images = {}
+    for cull in (False, True):
+        world.cull = cull
+        walls, cpus, drawn, shots = [], [], [], []
+        for eye, yaw in views:
+            wall, cpu = time.perf_counter(), time.process_time()
+            shots.append(world.render(eye, yaw, camera))
+            walls.append(time.perf_counter() - wall)
+            cpus.append(time.process_time() - cpu)
+            drawn.append(world.drawn_bodies)
+        images[cull] = shots
+        print(
+            f"render per image at {resolution}x{resolution}, culling {'on' if cull else 'off'}: "
+            f"{statistics.median(walls) * 1000:.0f} ms wall, "
+            f"{statistics.median(cpus) * 1000:.0f} ms CPU (median of {len(walls)}), "
+            f"{statistics.median(drawn):.0f} bodies drawn (median)"
+        )
+    same = sum(bool((a == b).all()) for a, b in zip(images[False], images[True], strict=True))
+    print(f"images identical with and without culling: {same} of {len(views)}")
     if run:
         wall, cpu = time.perf_counter(), time.process_time()
         result = autonomous_run(world, camera, seed=0)

@@ -273,12 +273,20 @@ def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) ->
         points.append(np.array([k.pt for k in keypoints], dtype=np.float32))
         images.append(np.full(len(keypoints), j, dtype=np.uint8 if n <= 256 else np.uint16))
         descriptors.append(desc)
-    geometry = (n, h, w, image_set.fov_rad, image_set.camera_angle_rad, factor)
     if not points:
-        empty = np.zeros((0, 2), np.float32), np.zeros(0, np.uint8), np.zeros((0, 32), np.uint8)
-        return StoredFeatures(*empty, *geometry)
+        points = [np.zeros((0, 2), np.float32)]
+        images = [np.zeros(0, np.uint8)]
+        descriptors = [np.zeros((0, 32), np.uint8)]
     return StoredFeatures(
-        np.concatenate(points), np.concatenate(images), np.concatenate(descriptors), *geometry
+        np.concatenate(points),
+        np.concatenate(images),
+        np.concatenate(descriptors),
+        count=n,
+        height=h,
+        width=w,
+        fov_rad=image_set.fov_rad,
+        camera_angle_rad=image_set.camera_angle_rad,
+        factor=factor,
     )
 
 

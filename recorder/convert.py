@@ -31,16 +31,17 @@ __all__ = ["LogRecord", "MessageSink", "ReadyMessage", "RecordConverter", "Sweep
 
 
 class MessageSink(Protocol):
-    """Where converted messages go: the log writer, or a live view's collector."""
+    """Where a :class:`RecordConverter` writes: a :class:`~pipemap.recorder.writer.LogWriter`,
+    or anything with its three methods (the live view keeps the messages in memory)."""
 
     def write(self, topic: str, log_time_ns: int, message: Any) -> None:
-        """Serialize ``message`` and add it on ``topic`` at ``log_time_ns``."""
+        """Serialize ``message`` and write it on ``topic``."""
 
     def write_serialized(self, topic: str, log_time_ns: int, data: bytes) -> None:
-        """Add already serialized ``data`` on ``topic`` at ``log_time_ns``."""
+        """Write an already serialized message on ``topic``."""
 
     def flush(self) -> None:
-        """Hand on what was added so far."""
+        """Hand what is buffered on (to disk, for a file)."""
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,7 @@ LogRecord = SimRecord | SweepDone | ReadyMessage
 
 
 class RecordConverter:
-    """Writes each record's messages to a :class:`MessageSink` (the log writer)."""
+    """Writes each record's messages to a :class:`MessageSink` (a log writer)."""
 
     def __init__(self, writer: MessageSink, spec: RobotSpec | None = None) -> None:
         self.writer = writer

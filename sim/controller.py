@@ -36,6 +36,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from pipemap.sim.episode import Pose, Sweep, sweep_start_angle
+from pipemap.sim.network import Network
 from pipemap.sim.policy import ExitPolicy, Junction, RightHandPolicy, RunStatus
 from pipemap.sim.robot import (
     NS_PER_S,
@@ -60,7 +61,14 @@ from pipemap.sim.stream import (
 )
 from pipemap.sim.world import CameraSpec, World
 
-__all__ = ["ExplorationResult", "Explorer", "ExplorerConfig", "RunStatus", "autonomous_run"]
+__all__ = [
+    "ExplorationResult",
+    "Explorer",
+    "ExplorerConfig",
+    "RunStatus",
+    "autonomous_run",
+    "default_time_limit_ns",
+]
 
 #: Horizontal distance from the pipe axis to the wall at the rangers' height (5 cm).
 _HALF_WIDTH_M = math.sqrt(0.1**2 - 0.05**2)
@@ -122,7 +130,26 @@ class ExplorerConfig:
     bend_settle_deg: float = 4.0
     bend_settle_m: float = 0.06
     stuck_after_ns: int = 30 * NS_PER_S
-    time_limit_ns: int = 3600 * NS_PER_S
+    #: Simulated time after which the run stops (``RunStatus.TIME_LIMIT``); None:
+    #: :func:`default_time_limit_ns` of the world's network, which grows with it.
+    time_limit_ns: int | None = None
+
+
+#: The shortest default time limit, and the simulated time allowed per metre of pipe
+#: in the network: an exploration drives each pipe about twice and sweeps at every
+#: node (``paper``: 14.3 m driven and 13 sweeps in 390 s for 7.0 m of pipe, 56 s per
+#: metre), so 3.6 times that is room for the detours of a loopy network.
+MIN_TIME_LIMIT_S = 3600
+TIME_LIMIT_S_PER_PIPE_M = 200
+
+
+def default_time_limit_ns(network: Network) -> int:
+    """A run's default time limit: ``TIME_LIMIT_S_PER_PIPE_M`` per metre of pipe in
+    ``network``, at least ``MIN_TIME_LIMIT_S`` (a safety stop of the simulation, not
+    known to the explorer's policy)."""
+    pipe_m = sum(network.length_m(p.a, p.b) for p in network.pipes)
+    seconds = max(MIN_TIME_LIMIT_S, math.ceil(TIME_LIMIT_S_PER_PIPE_M * pipe_m))
+    return int(seconds) * NS_PER_S
 
 
 @dataclass
@@ -225,6 +252,10 @@ class Explorer:
         if policy is None:
             policy = RightHandPolicy(self.config.start_radius_m, self.config.drift_per_m)
         self.policy = policy
+        limit = self.config.time_limit_ns
+        self.time_limit_ns = (
+            limit if limit is not None else default_time_limit_ns(robot.world.network)
+        )
         # Ground truth only labels the sweeps for scoring; no decision reads it.
         self._true_node_of = true_node_of
         self._yaw_est = robot.pose.yaw_rad  # the robot's own heading estimate (gyro)
@@ -296,7 +327,7 @@ class Explorer:
             return RunStatus.LEFT_PIPE
         if self.robot.t_ns - self._last_progress_ns > self.config.stuck_after_ns:
             return RunStatus.STUCK
-        if self.robot.t_ns > self.config.time_limit_ns:
+        if self.robot.t_ns > self.time_limit_ns:
             return RunStatus.TIME_LIMIT
         return None
 

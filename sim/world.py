@@ -16,6 +16,13 @@ the measurement behind it.
 PyBullet pitfalls seen in a probe and avoided here: removing bodies leaks mesh
 memory (the world is built once per run and never edited); a camera exactly on a
 ring of mesh vertices rendered 100x slower (callers nudge the eye by 0.1 mm).
+
+TinyRenderer draws every body for every image, so before each image the world
+hides (alpha 0: TinyRenderer skips the body) every body no line of sight from the
+eye can reach (:mod:`sim.visibility`); the image stays the same to the bit (but for
+pixels that look out of the network through a crack between two meshes: see
+docs/culling.md), and its cost follows what is near the camera, not the network. Collision,
+and so the range rays, keeps every body.
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ from pipemap.errors import SimError
 from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
 from pipemap.sim.network import Network
 from pipemap.sim.textures import node_texture, pipe_texture
+from pipemap.sim.visibility import PortalGraph, frustum_arc, visible_parts
 
 __all__ = ["CameraSpec", "World"]
 
@@ -91,12 +99,22 @@ class CameraSpec:
 class World:
     """A pipe network in its own PyBullet client. Use as a context manager."""
 
-    def __init__(self, network: Network, seed: int, texture_px: int = 512) -> None:
+    def __init__(
+        self, network: Network, seed: int, texture_px: int = 512, cull: bool = True
+    ) -> None:
         self.network = network
         self.radius_m = network.diameter_m / 2.0
+        #: Hide, for each image, the bodies no line of sight can reach (same image).
+        self.cull = cull
         self._client = pybullet.connect(pybullet.DIRECT)
         self._tmp = tempfile.TemporaryDirectory(prefix="pipemap-world-")
         self.triangle_count = 0
+        self._node_bodies: dict[str, list[int]] = {n.label: [] for n in network.nodes}
+        self._pipe_bodies: dict[tuple[str, str], list[int]] = {}
+        self._hidden: set[int] = set()
+        self._portals = PortalGraph(network)
+        #: Bodies drawn by the last image (all of them when nothing was culled).
+        self.drawn_bodies = 0
         try:
             self._build(np.random.default_rng(seed), texture_px)
         except BaseException:
@@ -123,7 +141,7 @@ class World:
         cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
         return int(pybullet.loadTexture(str(path), physicsClientId=self._client))
 
-    def _add(self, mesh: Mesh, texture_id: int) -> None:
+    def _add(self, mesh: Mesh, texture_id: int) -> int:
         kwargs: dict[str, Any] = {"physicsClientId": self._client}
         visual = pybullet.createVisualShape(
             pybullet.GEOM_MESH,
@@ -148,6 +166,7 @@ class World:
         )
         pybullet.changeVisualShape(body, -1, textureUniqueId=texture_id, **kwargs)
         self.triangle_count += mesh.triangle_count
+        return int(body)
 
     def _build(self, rng: np.random.Generator, texture_px: int) -> None:
         net = self.network
@@ -181,7 +200,10 @@ class World:
                     self.radius_m,
                     u_range,
                 )
-                self._add(mesh, tid)
+                body = self._add(mesh, tid)
+                self._pipe_bodies.setdefault((pipe.a, pipe.b), []).append(body)
+                self._node_bodies[pipe.a].append(body)
+                self._node_bodies[pipe.b].append(body)
         for node, nrng in zip(net.nodes, node_rngs, strict=True):
             # The entry is closed too: the launch pit's wall, not open air, which
             # would render as a black half-image that looks like any dark view.
@@ -194,9 +216,32 @@ class World:
                 # ends then scored 0.366, over the 0.36 threshold (0.339 as drawn).
                 texture = node_texture(nrng, texture_px, texture_px, radius_m=0.2)
                 tid = self._texture(f"node-{node.label}", texture)
-                self._add(chamber, tid)
+                self._node_bodies[node.label].append(self._add(chamber, tid))
 
     # -- sensing ----------------------------------------------------------------------
+
+    def _cull(self, eye_xyz_m: tuple[float, float, float], view: tuple[float, float]) -> None:
+        """Hide the bodies no line of sight from the eye can reach, show the others."""
+        everything = {b for bodies in self._pipe_bodies.values() for b in bodies}
+        everything.update(b for bodies in self._node_bodies.values() for b in bodies)
+        if not self.cull and not self._hidden:
+            self.drawn_bodies = len(everything)
+            return
+        parts = visible_parts(self._portals, (eye_xyz_m[0], eye_xyz_m[1]), view)
+        if not self.cull or parts is None:
+            shown = everything
+        else:
+            nodes, pipes = parts
+            shown = {b for n in nodes for b in self._node_bodies[n]}
+            shown.update(b for p in pipes for b in self._pipe_bodies[p])
+        hidden = everything - shown
+        kwargs: dict[str, Any] = {"physicsClientId": self._client}
+        for body in hidden - self._hidden:
+            pybullet.changeVisualShape(body, -1, rgbaColor=[1.0, 1.0, 1.0, 0.0], **kwargs)
+        for body in self._hidden - hidden:
+            pybullet.changeVisualShape(body, -1, rgbaColor=[1.0, 1.0, 1.0, 1.0], **kwargs)
+        self._hidden = hidden
+        self.drawn_bodies = len(shown)
 
     def render(
         self,
@@ -216,6 +261,9 @@ class World:
         )
         eye = np.asarray(eye_xyz_m, dtype=np.float64)
         view = pybullet.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), [0.0, 0.0, 1.0])
+        # frustum_arc assumes an unrolled camera: a camera rolled about its axis needs
+        # the whole circle here (visibility.ALL) or a wider arc.
+        self._cull(eye_xyz_m, frustum_arc(yaw_rad, pitch_rad, camera.fov_rad))
         proj = pybullet.computeProjectionMatrixFOV(
             fov=math.degrees(camera.fov_rad), aspect=1.0, nearVal=NEAR_M, farVal=FAR_M
         )

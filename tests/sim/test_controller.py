@@ -7,8 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from pipemap.sim import CameraSpec, World, build_network, right_hand_tour
-from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
+from pipemap.sim import CameraSpec, World, build_network, controller, right_hand_tour
+from pipemap.sim.controller import (
+    ExplorerConfig,
+    RunStatus,
+    autonomous_run,
+    default_time_limit_ns,
+)
 from pipemap.sim.network import NodeKind
 
 TINY = CameraSpec(resolution_px=32)
@@ -91,6 +96,33 @@ def test_watchdog_ends_the_run_and_keeps_what_was_produced(paper_world) -> None:
     assert result.status is RunStatus.TIME_LIMIT
     assert [s.true_node for s in result.sweeps][:2] == ["S", "A"]
     assert result.events[-1][1] == "watchdog: time limit"
+
+
+def test_the_default_time_limit_grows_with_the_network() -> None:
+    # random:100 stopped at a fixed 3600 s with 163.8 of its 179 m of pipe driven once.
+    assert default_time_limit_ns(build_network("paper")) == 3600 * 10**9  # 7.0 m: the floor
+    grid = build_network("grid:10x10")  # 181 m of pipe
+    pipe_m = sum(grid.length_m(p.a, p.b) for p in grid.pipes)
+    assert default_time_limit_ns(grid) == math.ceil(200 * pipe_m) * 10**9
+    assert default_time_limit_ns(grid) > 10 * 3600 * 10**9
+
+
+def test_a_run_without_a_time_limit_takes_its_network_s(
+    paper_world,  # type: ignore[no-untyped-def]
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # 60 s for the paper network's 7 m of pipe: the default run stops where an explicit
+    # 60 s limit stops it (see the watchdog test), not at the floor.
+    monkeypatch.setattr(controller, "MIN_TIME_LIMIT_S", 0)
+    monkeypatch.setattr(controller, "TIME_LIMIT_S_PER_PIPE_M", 60 / 7.0)
+    limit_ns = default_time_limit_ns(paper_world.network)
+    assert 60 * 10**9 <= limit_ns <= 61 * 10**9
+    result = autonomous_run(paper_world, TINY, seed=1)
+    assert result.status is RunStatus.TIME_LIMIT
+    explicit = autonomous_run(
+        paper_world, TINY, seed=1, config=ExplorerConfig(time_limit_ns=limit_ns)
+    )
+    assert result.duration_ns == explicit.duration_ns
 
 
 def _corner_scan(
