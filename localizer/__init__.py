@@ -17,6 +17,7 @@ if TYPE_CHECKING:
         pairwise_matches,
         prepare,
     )
+    from pipemap.localizer.illumination import IlluminationConfig, normalised
     from pipemap.localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
     from pipemap.localizer.localizer import (
         DEFAULT_THRESHOLD,
@@ -81,6 +82,7 @@ _EXPORTS = {
     "FLOAT_DECIMALS": "pipemap.localizer.mapjson",
     "FastConfig": "pipemap.localizer.fastmatch",
     "FastMatcher": "pipemap.localizer.fastmatch",
+    "IlluminationConfig": "pipemap.localizer.illumination",
     "ImageSet": "pipemap.localizer.imageset",
     "Localizer": "pipemap.localizer.localizer",
     "LocalizerConfig": "pipemap.localizer.localizer",
@@ -106,6 +108,7 @@ _EXPORTS = {
     "overlapping_images": "pipemap.localizer.twoview",
     "map_document": "pipemap.localizer.mapjson",
     "ncc_same": "pipemap.localizer.similarity",
+    "normalised": "pipemap.localizer.illumination",
     "pair_peak": "pipemap.localizer.similarity",
     "paper_scaled": "pipemap.localizer.similarity",
     "pairwise_matches": "pipemap.localizer.fastmatch",
@@ -141,6 +144,7 @@ __all__ = [
     "Decision",
     "FastConfig",
     "FastMatcher",
+    "IlluminationConfig",
     "ImageSet",
     "Localizer",
     "LocalizerConfig",
@@ -164,6 +168,7 @@ __all__ = [
     "overlapping_images",
     "map_document",
     "ncc_same",
+    "normalised",
     "pair_peak",
     "paper_scaled",
     "pinhole_rotation_rad",

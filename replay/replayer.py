@@ -37,6 +37,7 @@ from pipemap.localizer import (
 )
 from pipemap.recorder import Integrity, LogMessage, Topic
 from pipemap.recorder.messages import decode_png
+from pipemap.recorder.metadata import lamp_strength
 from pipemap.recorder.schemas import CompressedImage, SweepCommand
 from pipemap.replay.source import MessageSource
 
@@ -276,7 +277,9 @@ def replay(
     for s in sweeps:
         if s.probe is not None:
             probes.setdefault(s.visit_id, []).append(s)
-    localizer = Localizer(config)
+    # A lamp-lit camera's sweeps are normalised (unless the caller says otherwise).
+    lit = lamp_strength(source.run_metadata()) > 0.0
+    localizer = Localizer((config if config is not None else LocalizerConfig()).for_camera(lit))
     decided: list[VisitDecision] = []
     for i, sweep in enumerate(visits):
         if lossy and i > 0 and sweep.visit_id != visits[i - 1].visit_id + 1:
