@@ -73,10 +73,12 @@ class RecordSettings:
     images_per_sweep: int = 6
     align_sweeps: bool = True
     threshold: float = DEFAULT_THRESHOLD
+    #: The robot's lamp relative to full; 0.0 lights every surface evenly.
+    lamp_strength: float = 1.0
 
     def camera(self) -> CameraSpec:
         """The camera of the run."""
-        return CameraSpec(resolution_px=self.resolution_px)
+        return CameraSpec(resolution_px=self.resolution_px, lamp_strength=self.lamp_strength)
 
     def metadata(self, network: Network, version: str) -> dict[str, str]:
         """The ``pipemap.run`` metadata record: strings only, deterministic."""
@@ -338,7 +340,8 @@ def record_run(
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
     camera = settings.camera()
-    localizer = Localizer(LocalizerConfig(threshold=settings.threshold))
+    config = LocalizerConfig(threshold=settings.threshold)
+    localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
     mode = "wb" if overwrite else "xb"
     with BackgroundWriter(path, mode, settings.metadata(network, version)) as writer:
         sink = _OnlineSink(writer, localizer, camera, progress, observer)

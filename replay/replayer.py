@@ -28,6 +28,7 @@ from google.protobuf.message import DecodeError
 from pipemap.errors import PipemapError
 from pipemap.localizer import (
     Decision,
+    IlluminationConfig,
     ImageSet,
     Localizer,
     LocalizerConfig,
@@ -99,6 +100,8 @@ class ReplayResult:
     visit_sets: dict[int, ImageSet] = field(default_factory=dict)
     #: Positions in ``visits`` before which the path is broken (a visit was lost).
     breaks: tuple[int, ...] = ()
+    #: The localizer's illumination settings (``lamp`` decided): how it saw the sets.
+    illumination: IlluminationConfig | None = None
 
     def document(self) -> dict[str, Any]:
         """The map document, in the format of ``pipemap map --json``."""
@@ -313,4 +316,5 @@ def replay(
         camera_angles={s.sweep_id: s.images.camera_angle_rad for s in sweeps},
         visit_sets={s.sweep_id: s.images for s in visits},
         breaks=tuple(breaks),
+        illumination=localizer.config.illumination if localizer.config.lamp else None,
     )

@@ -10,8 +10,8 @@ pixel, then lights the scene. A real pipe robot carries a lamp at the camera;
 TinyRenderer only knows directional light, so the lamp is applied afterwards from
 the depth buffer (inverse-square falloff along each pixel's ray times the cosine
 of the angle between ray and surface), mixed with uniform light by
-``CameraSpec.lamp_strength``. The default is uniform light: see that field for
-the measurement behind it.
+``CameraSpec.lamp_strength``. The default is the lamp alone, as in a buried pipe;
+see that field.
 
 PyBullet pitfalls seen in a probe and avoided here: removing bodies leaks mesh
 memory (the world is built once per run and never edited); a camera exactly on a
@@ -72,12 +72,12 @@ class CameraSpec:
     resolution_px: int = 400
     fov_rad: float = math.radians(80.0)
     #: Share of the light that comes from a lamp at the camera (inverse-square
-    #: falloff, incidence shading); the rest is uniform. Default 0: with a lamp, the
-    #: dark vignette down the pipe is the same in every view and dominates the
-    #: paper's NCC (different junctions scored up to 0.85 at 1.0, 0.38 at 0.15,
-    #: 0.33 at 0, against the threshold 0.36), so the paper's method needs the
-    #: uniformly lit scenes its own simulation had.
-    lamp_strength: float = 0.0
+    #: falloff from ``LAMP_REFERENCE_M``, incidence shading); the rest is uniform.
+    #: Default 1.0: a buried pipe has no light but the robot's own, so nothing is lit
+    #: beyond the lamp's reach. 0.0 is the paper's evenly lit simulation
+    #: (``--lighting even``). Under the lamp the paper's whole-image NCC cannot tell
+    #: junctions apart unaided; the localizer normalises illumination (docs/lighting.md).
+    lamp_strength: float = 1.0
 
     def __post_init__(self) -> None:
         if not 16 <= self.resolution_px <= 4096:

@@ -12,7 +12,7 @@ import sys
 from typing import Any, TextIO
 
 from pipemap import api
-from pipemap.cli.parser import fast_config, two_view_settings
+from pipemap.cli.parser import fast_config, illumination_setting, two_view_settings
 from pipemap.imagesets import load_image_sets
 from pipemap.localizer import (
     ImageSet,
@@ -102,6 +102,7 @@ def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         distinct_consecutive=not args.allow_repeat,
         two_view=two_view,
         verify=verify,
+        lamp=illumination_setting(args),
     )
     doc = api.map_image_sets(args.dirs, config, args.fov_deg, args.keep_top)
     if args.json:

@@ -102,6 +102,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         images_per_sweep=args.images,
         align_sweeps=args.align_sweeps,
         threshold=args.threshold,
+        lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
     )
     live = None
     if args.view and not args.save:

@@ -183,6 +183,19 @@ def add_rule_options(p: argparse.ArgumentParser) -> None:
         "peak shift); the two-view model needs a camera that turns about its own centre, "
         "as pipemap's does (implies --no-verify)",
     )
+    p.add_argument(
+        "--illumination",
+        choices=["auto", "lamp", "even"],
+        default="auto",
+        help="lamp: divide every image by its own illumination estimate before matching "
+        "(sweeps lit by the robot's lamp); even: as in the paper; auto (default): lamp "
+        "when the log's camera had its lamp on, even for image folders",
+    )
+
+
+def illumination_setting(args: argparse.Namespace) -> bool | None:
+    """``lamp`` of :class:`localizer.LocalizerConfig` from ``--illumination``."""
+    return {"auto": None, "lamp": True, "even": False}[args.illumination]
 
 
 def two_view_settings(args: argparse.Namespace) -> tuple[bool, bool]:
@@ -219,6 +232,13 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         help=f"placement at junctions, as in the paper (default {condition})",
     )
     p.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
+    p.add_argument(
+        "--lighting",
+        choices=["lamp", "even"],
+        default="lamp",
+        help="lamp (default): a dark pipe lit only by the robot's lamp at the camera; "
+        "even: every surface evenly lit, as in the paper's simulation",
+    )
     p.add_argument(
         "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
     )

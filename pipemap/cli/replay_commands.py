@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from pipemap.cli.outputs import output_file, output_folder, write_text
-from pipemap.cli.parser import fast_config, two_view_settings
+from pipemap.cli.parser import fast_config, illumination_setting, two_view_settings
 from pipemap.errors import WriteError
 
 __all__ = [
@@ -41,6 +41,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         distinct_consecutive=not args.allow_repeat,
         two_view=two_view,
         verify=verify,
+        lamp=illumination_setting(args),
     )
 
 

@@ -76,7 +76,8 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
         )
-    camera = CameraSpec(resolution_px=args.resolution)
+    lamp = 1.0 if args.lighting == "lamp" else 0.0
+    camera = CameraSpec(resolution_px=args.resolution, lamp_strength=lamp)
     config = SimConfig(
         condition=condition,
         seed=args.seed,

@@ -291,3 +291,15 @@ def test_a_disk_that_fills_keeps_every_complete_sweep_readable(small_disk: Path)
     assert doc["integrity"] == "truncated" and doc["sweeps"] >= 1
     replayed = pipemap("replay", str(target))
     assert replayed.returncode == 0 and len(json.loads(replayed.stdout)["visits"]) == doc["sweeps"]
+
+
+def test_the_log_records_the_lamp_and_lighting_even_turns_it_off(
+    recorded_run: Path, tmp_path: Path
+) -> None:
+    from pipemap.recorder.metadata import lamp_strength
+
+    assert lamp_strength(read_log(recorded_run).metadata[METADATA_RUN]) == 1.0
+    even = tmp_path / "even.mcap"
+    done = record(even, "--lighting", "even")
+    assert done.returncode == 0, done.stderr
+    assert lamp_strength(read_log(even).metadata[METADATA_RUN]) == 0.0
