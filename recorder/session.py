@@ -75,6 +75,8 @@ class RecordSettings:
     threshold: float = DEFAULT_THRESHOLD
     #: The robot's lamp relative to full; 0.0 lights every surface evenly.
     lamp_strength: float = 1.0
+    #: The robot off level (placement conditions): see ``SimConfig.tilt_rad``.
+    tilt_rad: float = 0.0
 
     def camera(self) -> CameraSpec:
         """The camera of the run."""
@@ -120,6 +122,7 @@ class RecordSettings:
             camera=self.camera(),
             images_per_sweep=self.images_per_sweep,
             align_sweeps=self.align_sweeps,
+            tilt_rad=self.tilt_rad,
         )
 
 

@@ -37,7 +37,7 @@ from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
 from pipemap.sim.network import Network
 from pipemap.sim.textures import node_texture, pipe_texture
 
-__all__ = ["CameraSpec", "World"]
+__all__ = ["CameraSpec", "World", "body_rotation"]
 
 
 def _import_pybullet_quietly() -> Any:
@@ -206,7 +206,6 @@ class World:
         pitch_rad: float = 0.0,
     ) -> np.ndarray:
         """What the camera sees, lit by a lamp at the camera: RGB uint8 (H, W, 3)."""
-        res = camera.resolution_px
         forward = np.array(
             [
                 math.cos(pitch_rad) * math.cos(yaw_rad),
@@ -214,8 +213,34 @@ class World:
                 math.sin(pitch_rad),
             ]
         )
+        return self._render(eye_xyz_m, forward, np.array([0.0, 0.0, 1.0]), camera)
+
+    def render_tilted(
+        self,
+        eye_xyz_m: tuple[float, float, float],
+        heading_rad: float,
+        camera_angle_rad: float,
+        roll_rad: float,
+        pitch_rad: float,
+        camera: CameraSpec,
+    ) -> np.ndarray:
+        """What the camera sees on a robot standing off level: the camera turns by
+        ``camera_angle_rad`` (counter-clockwise) about the axis of a body that is
+        rolled, pitched (nose down positive) and headed as given."""
+        body = body_rotation(heading_rad, roll_rad, pitch_rad)
+        look = np.array([math.cos(camera_angle_rad), math.sin(camera_angle_rad), 0.0])
+        return self._render(eye_xyz_m, body @ look, body[:, 2], camera)
+
+    def _render(
+        self,
+        eye_xyz_m: tuple[float, float, float],
+        forward: np.ndarray,
+        up: np.ndarray,
+        camera: CameraSpec,
+    ) -> np.ndarray:
+        res = camera.resolution_px
         eye = np.asarray(eye_xyz_m, dtype=np.float64)
-        view = pybullet.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), [0.0, 0.0, 1.0])
+        view = pybullet.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), up.tolist())
         proj = pybullet.computeProjectionMatrixFOV(
             fov=math.degrees(camera.fov_rad), aspect=1.0, nearVal=NEAR_M, farVal=FAR_M
         )
@@ -246,6 +271,19 @@ class World:
         )
         fractions = np.array([h[2] if h[0] >= 0 else 1.0 for h in hits])
         return fractions * max_range_m
+
+
+def body_rotation(heading_rad: float, roll_rad: float, pitch_rad: float) -> np.ndarray:
+    """World-from-body rotation of a robot: heading about z, then pitch about its
+    y (left) axis, nose down positive, then roll about its x (forward) axis."""
+    cz, sz = math.cos(heading_rad), math.sin(heading_rad)
+    cp, sp = math.cos(pitch_rad), math.sin(pitch_rad)
+    cr, sr = math.cos(roll_rad), math.sin(roll_rad)
+    yaw = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    pitch = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    roll = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    matrix: np.ndarray = yaw @ pitch @ roll
+    return matrix
 
 
 @functools.lru_cache(maxsize=4)

@@ -68,6 +68,7 @@ def _degrees(text: str) -> float:
 
 
 _zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (1, 2]")
+_tilt_deg = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 15.0, "not in [0, 15]")
 _highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
 
 
@@ -238,6 +239,14 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         default="lamp",
         help="lamp (default): a dark pipe lit only by the robot's lamp at the camera; "
         "even: every surface evenly lit, as in the paper's simulation",
+    )
+    p.add_argument(
+        "--tilt-deg",
+        type=_tilt_deg,
+        default=0.0,
+        metavar="DEG",
+        help="the robot off level: roll and pitch drawn at each junction within +-DEG "
+        "(seeded; placement conditions only; default 0, level)",
     )
     p.add_argument(
         "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"

@@ -12,6 +12,7 @@ themselves).
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import shutil
 import sys
@@ -69,6 +70,11 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
 
+    if args.tilt_deg > 0.0 and args.condition == "autonomous":
+        raise InputError(
+            "--tilt-deg: the autonomous robot stands level for now; tilt it in a "
+            "placement condition (perfect, noise, active, entrance)"
+        )
     target = output_folder(args.save_sweeps, "--save-sweeps", args.force)
     network = build_network(args.network, seed=args.seed)
     condition = Condition(args.condition)
@@ -84,6 +90,7 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         camera=camera,
         images_per_sweep=args.images,
         align_sweeps=args.align_sweeps,
+        tilt_rad=math.radians(args.tilt_deg),
     )
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
