@@ -1,7 +1,7 @@
 """How separable are same and different junctions under the robot's own lamp?
 
     python benchmarks/bench_lamp.py [--lamp 1.0] [--conditions noise,entrance]
-        [--seeds 0] [--resolution 400] [--cache /tmp/lamp_sweeps]
+        [--seeds 0] [--resolution 400] [--cache /tmp/lamp_sweeps] [--no-align-sweeps]
 
 Renders the paper's network in placement conditions (the robot placed at each
 junction of the right-hand tour, so junctions are revisited from other pipes) with
@@ -45,14 +45,19 @@ def _gray(rgb: np.ndarray) -> np.ndarray:
     return out
 
 
-def _sweeps(condition: str, seed: int, lamp: float, res: int, cache: Path | None) -> tuple:
-    name = f"{condition}_s{seed}_lamp{lamp:g}_{res}px.npz"
+def _sweeps(
+    condition: str, seed: int, lamp: float, res: int, cache: Path | None, align: bool = True
+) -> tuple:
+    name = f"{condition}_s{seed}_lamp{lamp:g}_{res}px{'' if align else '_straight'}.npz"
     if cache is not None and (cache / name).exists():
         data = np.load(cache / name)
         return list(data["images"]), list(data["nodes"]), list(data["angles"])
     network = build_network("paper")
     config = SimConfig(
-        Condition(condition), seed=seed, camera=CameraSpec(resolution_px=res, lamp_strength=lamp)
+        Condition(condition),
+        seed=seed,
+        camera=CameraSpec(resolution_px=res, lamp_strength=lamp),
+        align_sweeps=align,
     )
     images, nodes, angles = [], [], []
     with World(network, seed) as world:
@@ -115,6 +120,11 @@ def main() -> None:
     parser.add_argument("--seeds", default="0")
     parser.add_argument("--resolution", type=int, default=400)
     parser.add_argument("--cache", type=Path, default=None)
+    parser.add_argument(
+        "--no-align-sweeps",
+        action="store_true",
+        help="start every sweep straight ahead, as in the paper (default: aligned)",
+    )
     args = parser.parse_args()
     print(
         "lighting    normalise  condition  pairs(same)  same_min  diff_max  gap     "
@@ -124,7 +134,9 @@ def main() -> None:
         (0.0, args.lamp), args.conditions.split(","), [int(s) for s in args.seeds.split(",")]
     ):
         t0 = time.process_time()
-        images, nodes, angles = _sweeps(condition, seed, lamp, args.resolution, args.cache)
+        images, nodes, angles = _sweeps(
+            condition, seed, lamp, args.resolution, args.cache, not args.no_align_sweeps
+        )
         sets = [
             ImageSet(im, camera_angle_rad=float(a)) for im, a in zip(images, angles, strict=True)
         ]
