@@ -29,6 +29,7 @@ from pipemap.errors import ViewerError
 from pipemap.localizer import Localizer, LocalizerConfig
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.convert import LogRecord, RecordConverter
+from pipemap.recorder.metadata import lamp_strength
 from pipemap.recorder.topics import ROBOT_PREFIX
 from pipemap.replay.replayer import LoggedSweep, VisitDecision, answer_probes, sweeps_of
 from pipemap.replay.source import ordered
@@ -88,7 +89,9 @@ class LiveView:
         self._convert = RecordConverter(self._collector)
         self._trail = Trail()
         self._map = MapLog(rec)
-        self._localizer = Localizer(config)
+        # As a replay of the log would: a lamp-lit camera's sweeps are normalised.
+        lit = lamp_strength(run_metadata) > 0.0
+        self._localizer = Localizer(config.for_camera(lit))
         self._waiting: list[LoggedSweep] = []  # visits' sweeps the run has not decided yet
         self._probes: dict[int, list[LoggedSweep]] = defaultdict(list)
         self._sweeps = self._images = self._visits = 0

@@ -99,9 +99,10 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         episode = Episode(world, config, start=args.start)
         localizer = None
         if condition is Condition.ACTIVE:
-            from pipemap.localizer import Localizer
+            from pipemap.localizer import Localizer, LocalizerConfig
 
-            localizer = Localizer()
+            # It asks for probes as the recorder's would: normalising lamp-lit sweeps.
+            localizer = Localizer(LocalizerConfig().for_camera(camera.lamp_strength > 0.0))
         sweeps = 0
         for visit in episode.visits():
             folder = target / f"{visit.index + 1:04d}"
