@@ -25,6 +25,7 @@ if TYPE_CHECKING:
         pairwise_matches,
         prepare,
     )
+    from pipemap.localizer.illumination import IlluminationConfig, normalised
     from pipemap.localizer.imageset import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
     from pipemap.localizer.localizer import (
         DEFAULT_THRESHOLD,
@@ -120,6 +121,7 @@ _EXPORTS = {
     "FLOAT_DECIMALS": "pipemap.localizer.mapjson",
     "FastConfig": "pipemap.localizer.fastmatch",
     "FastMatcher": "pipemap.localizer.fastmatch",
+    "IlluminationConfig": "pipemap.localizer.illumination",
     "ImageSet": "pipemap.localizer.imageset",
     "Localizer": "pipemap.localizer.localizer",
     "LocalizerConfig": "pipemap.localizer.localizer",
@@ -145,6 +147,7 @@ _EXPORTS = {
     "overlapping_images": "pipemap.localizer.twoview",
     "map_document": "pipemap.localizer.mapjson",
     "ncc_same": "pipemap.localizer.similarity",
+    "normalised": "pipemap.localizer.illumination",
     "pair_peak": "pipemap.localizer.similarity",
     "paper_scaled": "pipemap.localizer.similarity",
     "pairwise_matches": "pipemap.localizer.fastmatch",
@@ -183,6 +186,7 @@ __all__ = [
     "ExploreStep",
     "FastConfig",
     "FastMatcher",
+    "IlluminationConfig",
     "ImageSet",
     "Localizer",
     "LocalizerConfig",
@@ -218,6 +222,7 @@ __all__ = [
     "nearest_exit",
     "nearest_route",
     "ncc_same",
+    "normalised",
     "pair_peak",
     "paper_scaled",
     "pinhole_rotation_rad",

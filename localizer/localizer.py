@@ -33,6 +33,7 @@ from typing import Protocol
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
+from pipemap.localizer.illumination import IlluminationConfig, normalised
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.ports import PORT_TOLERANCE_RAD, PortMatch, clockwise_ports, match_ports
 from pipemap.localizer.ports import nearest_exit as _nearest_exit
@@ -161,6 +162,19 @@ class LocalizerConfig:
     #: ``port_tolerance_rad`` (see :mod:`localizer.ports`). Not in the paper.
     port_check: bool = True
     port_tolerance_rad: float = PORT_TOLERANCE_RAD
+    #: The sweeps are lit by the robot's own lamp: divide every image by its own
+    #: illumination estimate (:mod:`localizer.illumination`) before matching, and
+    #: when the two-view fit at the NCC's rotation fails, fit again at any rotation
+    #: (under a lamp the NCC often turns a cross by a quarter or a half). ``None``:
+    #: as the camera says (:meth:`for_camera`; a replay asks the log's simulator
+    #: settings); unset, evenly lit, as the paper's image sets are. Not in the paper.
+    lamp: bool | None = None
+    illumination: IlluminationConfig = field(default_factory=IlluminationConfig)
+
+    def for_camera(self, lamp_lit: bool) -> LocalizerConfig:
+        """These settings for a camera that is (or is not) lit by a lamp, unless
+        ``lamp`` was set explicitly."""
+        return self if self.lamp is not None else replace(self, lamp=lamp_lit)
 
     def __post_init__(self) -> None:
         if not -1.0 <= self.threshold <= 1.0:
@@ -330,6 +344,7 @@ class Localizer:
         map gets ports. ``odometer_m`` (distance driven so far) gives edges a length.
         """
         exits = None if exits_rad is None else tuple(float(e) for e in exits_rad)
+        query = self._lit(query)
         prepared = self._matcher.prepare(query)
         matches, best, sim, margin = self._best(prepared)
         match = matches[best] if best is not None else None
@@ -344,6 +359,7 @@ class Localizer:
                     outcomes.append(ProbeOutcome(request, None, False))
                     continue
                 query.check_comparable(probe_set)
+                probe_set = self._lit(probe_set)
                 p_matches, p_best, p_sim, p_margin = self._best(self._matcher.prepare(probe_set))
                 improved = p_sim > sim
                 outcomes.append(ProbeOutcome(request, p_sim, improved))
@@ -486,6 +502,10 @@ class Localizer:
         self.map.new_traversal()
         self._last = None
 
+    def _lit(self, image_set: ImageSet) -> ImageSet:
+        """The set as the matcher sees it: normalised if lamp-lit."""
+        return normalised(image_set, self.config.illumination) if self.config.lamp else image_set
+
     def _checkable(self, features: SweepFeatures) -> bool:
         """Enough keypoints for the two-view check to decide; with fewer (images of a
         few dozen pixels), the threshold decides, as in the paper."""
@@ -527,6 +547,8 @@ class Localizer:
             )
             known = self._features[i].features()
             fit = fit_two_view(features, known, config, matches[i].rotation_rad)
+            if self.config.lamp and (fit is None or fit.inliers < needed):
+                fit = fit_two_view(features, known, config, None)
             if fit is not None and fit.inliers >= needed:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
                 if ports is not None and not ports.agrees and self.config.port_check:

@@ -12,7 +12,7 @@ import json
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["METADATA_TYPES", "typed_metadata"]
+__all__ = ["METADATA_TYPES", "lamp_strength", "typed_metadata"]
 
 
 def _bool(text: str) -> bool:
@@ -48,3 +48,14 @@ def typed_metadata(record: Mapping[str, str]) -> dict[str, Any]:
         except ValueError:
             typed[key] = text
     return typed
+
+
+def lamp_strength(run: Mapping[str, str]) -> float:
+    """The robot's lamp, relative to full (1.0), as the run's simulator settings
+    record it; 0.0 (even light) where they do not say, or are not JSON."""
+    try:
+        settings = json.loads(run.get("simulator", "{}"))
+        value = settings["camera"]["lamp_strength"]
+    except (ValueError, KeyError, TypeError):
+        return 0.0
+    return float(value) if isinstance(value, (int, float)) else 0.0

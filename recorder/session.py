@@ -81,10 +81,14 @@ class RecordSettings:
     threshold: float = DEFAULT_THRESHOLD
     #: How the autonomous robot chooses exits (placed tours follow the paper's rule).
     explore: Explore = Explore.MAP
+    #: The robot's lamp relative to full; 0.0 lights every surface evenly.
+    lamp_strength: float = 1.0
+    #: The robot off level (placement conditions): see ``SimConfig.tilt_rad``.
+    tilt_rad: float = 0.0
 
     def camera(self) -> CameraSpec:
         """The camera of the run."""
-        return CameraSpec(resolution_px=self.resolution_px)
+        return CameraSpec(resolution_px=self.resolution_px, lamp_strength=self.lamp_strength)
 
     def metadata(self, network: Network, version: str) -> dict[str, str]:
         """The ``pipemap.run`` metadata record: strings only, deterministic."""
@@ -129,6 +133,7 @@ class RecordSettings:
             camera=self.camera(),
             images_per_sweep=self.images_per_sweep,
             align_sweeps=self.align_sweeps,
+            tilt_rad=self.tilt_rad,
         )
 
 
@@ -367,7 +372,8 @@ def record_run(
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
     camera = settings.camera()
-    localizer = Localizer(LocalizerConfig(threshold=settings.threshold))
+    config = LocalizerConfig(threshold=settings.threshold)
+    localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
     mode = "wb" if overwrite else "xb"
     with BackgroundWriter(path, mode, settings.metadata(network, version)) as writer:
         sink = _OnlineSink(writer, localizer, camera, progress, observer)

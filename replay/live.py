@@ -29,6 +29,7 @@ from pipemap.errors import ViewerError
 from pipemap.localizer import Localizer, LocalizerConfig
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.convert import LogRecord, RecordConverter
+from pipemap.recorder.metadata import lamp_strength
 from pipemap.recorder.topics import ROBOT_PREFIX
 from pipemap.replay.replayer import (
     LoggedSweep,
@@ -94,7 +95,9 @@ class LiveView:
         self._convert = RecordConverter(self._collector)
         self._trail = Trail()
         self._map = MapLog(rec)
-        self._localizer = Localizer(config)
+        # As a replay of the log would: a lamp-lit camera's sweeps are normalised.
+        lit = lamp_strength(run_metadata) > 0.0
+        self._localizer = Localizer(config.for_camera(lit))
         self._waiting: list[LoggedSweep] = []  # visits' sweeps the run has not decided yet
         self._probes: dict[int, list[LoggedSweep]] = defaultdict(list)
         self._node_events: list[LogMessage] = []  # exit scans and departures so far

@@ -30,6 +30,7 @@ from google.protobuf.message import DecodeError
 from pipemap.errors import PipemapError
 from pipemap.localizer import (
     Decision,
+    IlluminationConfig,
     ImageSet,
     Localizer,
     LocalizerConfig,
@@ -39,6 +40,7 @@ from pipemap.localizer import (
 )
 from pipemap.recorder import Integrity, LogMessage, Topic
 from pipemap.recorder.messages import decode_png
+from pipemap.recorder.metadata import lamp_strength
 from pipemap.recorder.schemas import CompressedImage, NodeEvent, SweepCommand
 from pipemap.replay.source import MessageSource
 
@@ -120,6 +122,8 @@ class ReplayResult:
     #: The localizer after the replay: its map and its junctions' sweeps, ready to
     #: go on (to drive a route on the same map, say).
     localizer: Localizer | None = None
+    #: The localizer's illumination settings (``lamp`` decided): how it saw the sets.
+    illumination: IlluminationConfig | None = None
 
     def document(self) -> dict[str, Any]:
         """The map document, in the format of ``pipemap map --json``."""
@@ -343,7 +347,9 @@ def replay(
         if s.probe is not None:
             probes.setdefault(s.visit_id, []).append(s)
     events = node_events_of(messages, warnings, source.name)
-    localizer = Localizer(config)
+    # A lamp-lit camera's sweeps are normalised (unless the caller says otherwise).
+    lit = lamp_strength(source.run_metadata()) > 0.0
+    localizer = Localizer((config if config is not None else LocalizerConfig()).for_camera(lit))
     decided: list[VisitDecision] = []
     for i, sweep in enumerate(visits):
         if lossy and i > 0 and sweep.visit_id != visits[i - 1].visit_id + 1:
@@ -387,4 +393,5 @@ def replay(
         visit_sets={s.sweep_id: s.images for s in visits},
         breaks=tuple(breaks),
         localizer=localizer,
+        illumination=localizer.config.illumination if localizer.config.lamp else None,
     )

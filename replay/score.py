@@ -33,7 +33,14 @@ from typing import Any
 from google.protobuf.message import DecodeError
 
 from pipemap.errors import LogFormatError
-from pipemap.localizer import FastConfig, LocalizerConfig, TopoMap, pairwise_matches, wrap_angle_rad
+from pipemap.localizer import (
+    FastConfig,
+    LocalizerConfig,
+    TopoMap,
+    normalised,
+    pairwise_matches,
+    wrap_angle_rad,
+)
 from pipemap.recorder import Integrity, Topic
 from pipemap.recorder.schemas import TrueSweep
 from pipemap.replay.coverage import Coverage, coverage_of, ports_correct, true_network
@@ -251,9 +258,12 @@ def pair_statistics(
 
     The rotation of a pair is the localizer's estimate of the turn from the first
     visit's heading to the second's; its error is against the simulator's headings.
+    The sets are compared as the localizer saw them (normalised under a lamp).
     """
     ids = sorted(i for i in result.visit_sets if i in truths)
     sets = [result.visit_sets[i] for i in ids]
+    if result.illumination is not None:
+        sets = [normalised(s, result.illumination) for s in sets]
     nodes = [truths[i].node for i in ids]
     headings = [truths[i].yaw_rad - s.camera_angle_rad for i, s in zip(ids, sets, strict=True)]
     same: list[float] = []

@@ -37,6 +37,9 @@ from pipemap.sim.network import Network
 from pipemap.sim.plan import right_hand_tour
 from pipemap.sim.world import CameraSpec, World
 
+#: The seed stream of the robot's tilt (with the run's seed).
+_TILT_STREAM = 20
+
 __all__ = ["Condition", "Episode", "Pose", "SimConfig", "Sweep", "Visit", "sweep_start_angle"]
 
 
@@ -75,10 +78,19 @@ class SimConfig:
     entrance_slip: float = 0.05
     texture_px: int = 512
     align_sweeps: bool = True
+    #: The robot off level: at each visit its roll and pitch are drawn uniformly
+    #: within +-this (floor deposits, a sagging pipe); 0 stands it level.
+    tilt_rad: float = 0.0
+    #: Standard deviation of the IMU's roll and pitch (from gravity, at rest).
+    imu_tilt_noise_rad: float = 0.002
 
     def __post_init__(self) -> None:
         if self.images_per_sweep < 1:
             raise SimError(f"images per sweep must be >= 1, got {self.images_per_sweep}")
+        if not 0.0 <= self.tilt_rad <= 0.3:
+            raise SimError(f"tilt must be in [0, 0.3] rad, got {self.tilt_rad}")
+        if not self.imu_tilt_noise_rad >= 0.0:
+            raise SimError(f"IMU tilt noise must be >= 0 rad, got {self.imu_tilt_noise_rad}")
         if self.noise_offset_m < 0 or self.entrance_slip < 0:
             raise SimError("noise offset and slip must be >= 0")
 
@@ -94,6 +106,8 @@ class Sweep:
     true_node: str
     probe: tuple[float, float, float] | None = None  # (yaw, forward, left) of a probe
     camera_angle_rad: float = 0.0
+    #: Roll and pitch as the robot's IMU reports them (robot data, noisy).
+    imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
 
 
 def sweep_start_angle(heading_estimate_rad: float, images: int, align: bool) -> float:
@@ -132,6 +146,7 @@ class Visit:
             self.node,
             (yaw_rad, forward_m, left_m),
             sweep.camera_angle_rad,
+            sweep.imu_tilt_rad,
         )
 
 
@@ -146,6 +161,8 @@ class Episode:
         self.config = config
         self.tour = right_hand_tour(self.network, start)
         self._rng = np.random.default_rng(config.seed)
+        # Tilts draw from their own stream: a level run's placements stay as they were.
+        self._tilt_rng = np.random.default_rng([config.seed, _TILT_STREAM])
 
     def _sweep(self, node: str, pose: Pose) -> Sweep:
         n = self.config.images_per_sweep
@@ -153,14 +170,30 @@ class Episode:
         first = pose.yaw_rad + angle
         # A hair off any ring of mesh vertices: TinyRenderer slows down 100x on one.
         eye = (pose.x_m + 1.3e-4, pose.y_m + 0.7e-4, pose.z_m)
-        images = np.stack(
-            [
-                self.world.render(eye, first - j * 2.0 * math.pi / n, self.config.camera)
+        camera_spec = self.config.camera
+        if pose.roll_rad == 0.0 and pose.pitch_rad == 0.0:
+            views = [
+                self.world.render(eye, first - j * 2.0 * math.pi / n, camera_spec) for j in range(n)
+            ]
+        else:
+            views = [
+                self.world.render_tilted(
+                    eye,
+                    pose.yaw_rad,
+                    angle - j * 2.0 * math.pi / n,
+                    pose.roll_rad,
+                    pose.pitch_rad,
+                    camera_spec,
+                )
                 for j in range(n)
             ]
-        )
         camera = Pose(pose.x_m, pose.y_m, pose.z_m, pose.roll_rad, pose.pitch_rad, first)
-        return Sweep(images, camera, node, camera_angle_rad=angle)
+        noise = self.config.imu_tilt_noise_rad if self.config.tilt_rad > 0.0 else 0.0
+        imu = (
+            pose.roll_rad + float(self._tilt_rng.normal(0.0, noise)) if noise else pose.roll_rad,
+            pose.pitch_rad + float(self._tilt_rng.normal(0.0, noise)) if noise else pose.pitch_rad,
+        )
+        return Sweep(np.stack(views), camera, node, camera_angle_rad=angle, imu_tilt_rad=imu)
 
     def _arrival_heading(self, node: str, arrived_from: str | None, leave_to: str | None) -> float:
         headings = self.network.pipe_headings(node)
@@ -189,7 +222,12 @@ class Episode:
             y -= radius * math.sin(heading)
             x += travelled * math.cos(heading + drift)
             y += travelled * math.sin(heading + drift)
-        return Pose(x, y, self.config.camera_height_m, 0.0, 0.0, heading)
+        roll = pitch = 0.0
+        if self.config.tilt_rad > 0.0:
+            roll, pitch = (
+                float(v) for v in self._tilt_rng.uniform(-1.0, 1.0, 2) * self.config.tilt_rad
+            )
+        return Pose(x, y, self.config.camera_height_m, roll, pitch, heading)
 
     def visits(self) -> Iterator[Visit]:
         """The visits in tour order, each with its sweep already taken."""

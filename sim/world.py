@@ -10,8 +10,8 @@ pixel, then lights the scene. A real pipe robot carries a lamp at the camera;
 TinyRenderer only knows directional light, so the lamp is applied afterwards from
 the depth buffer (inverse-square falloff along each pixel's ray times the cosine
 of the angle between ray and surface), mixed with uniform light by
-``CameraSpec.lamp_strength``. The default is uniform light: see that field for
-the measurement behind it.
+``CameraSpec.lamp_strength``. The default is the lamp alone, as in a buried pipe;
+see that field.
 
 PyBullet pitfalls seen in a probe and avoided here: removing bodies leaks mesh
 memory (the world is built once per run and never edited); a camera exactly on a
@@ -43,9 +43,9 @@ from pipemap.errors import SimError
 from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
 from pipemap.sim.network import Network
 from pipemap.sim.textures import node_texture, pipe_texture
-from pipemap.sim.visibility import PortalGraph, frustum_arc, visible_parts
+from pipemap.sim.visibility import ALL, Arc, PortalGraph, frustum_arc, visible_parts
 
-__all__ = ["CameraSpec", "World"]
+__all__ = ["CameraSpec", "World", "body_rotation"]
 
 
 def _import_pybullet_quietly() -> Any:
@@ -80,12 +80,12 @@ class CameraSpec:
     resolution_px: int = 400
     fov_rad: float = math.radians(80.0)
     #: Share of the light that comes from a lamp at the camera (inverse-square
-    #: falloff, incidence shading); the rest is uniform. Default 0: with a lamp, the
-    #: dark vignette down the pipe is the same in every view and dominates the
-    #: paper's NCC (different junctions scored up to 0.85 at 1.0, 0.38 at 0.15,
-    #: 0.33 at 0, against the threshold 0.36), so the paper's method needs the
-    #: uniformly lit scenes its own simulation had.
-    lamp_strength: float = 0.0
+    #: falloff from ``LAMP_REFERENCE_M``, incidence shading); the rest is uniform.
+    #: Default 1.0: a buried pipe has no light but the robot's own, so nothing is lit
+    #: beyond the lamp's reach. 0.0 is the paper's evenly lit simulation
+    #: (``--lighting even``). Under the lamp the paper's whole-image NCC cannot tell
+    #: junctions apart unaided; the localizer normalises illumination (docs/lighting.md).
+    lamp_strength: float = 1.0
 
     def __post_init__(self) -> None:
         if not 16 <= self.resolution_px <= 4096:
@@ -251,7 +251,6 @@ class World:
         pitch_rad: float = 0.0,
     ) -> np.ndarray:
         """What the camera sees, lit by a lamp at the camera: RGB uint8 (H, W, 3)."""
-        res = camera.resolution_px
         forward = np.array(
             [
                 math.cos(pitch_rad) * math.cos(yaw_rad),
@@ -259,11 +258,39 @@ class World:
                 math.sin(pitch_rad),
             ]
         )
+        arc = frustum_arc(yaw_rad, pitch_rad, camera.fov_rad)
+        return self._render(eye_xyz_m, forward, np.array([0.0, 0.0, 1.0]), camera, arc)
+
+    def render_tilted(
+        self,
+        eye_xyz_m: tuple[float, float, float],
+        heading_rad: float,
+        camera_angle_rad: float,
+        roll_rad: float,
+        pitch_rad: float,
+        camera: CameraSpec,
+    ) -> np.ndarray:
+        """What the camera sees on a robot standing off level: the camera turns by
+        ``camera_angle_rad`` (counter-clockwise) about the axis of a body that is
+        rolled, pitched (nose down positive) and headed as given."""
+        body = body_rotation(heading_rad, roll_rad, pitch_rad)
+        look = np.array([math.cos(camera_angle_rad), math.sin(camera_angle_rad), 0.0])
+        # frustum_arc assumes an unrolled camera: a rolled one may see any way round.
+        return self._render(eye_xyz_m, body @ look, body[:, 2], camera, ALL)
+
+    def _render(
+        self,
+        eye_xyz_m: tuple[float, float, float],
+        forward: np.ndarray,
+        up: np.ndarray,
+        camera: CameraSpec,
+        arc: Arc,
+    ) -> np.ndarray:
+        """Draw, after hiding what no line of sight within ``arc`` reaches."""
+        res = camera.resolution_px
         eye = np.asarray(eye_xyz_m, dtype=np.float64)
-        view = pybullet.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), [0.0, 0.0, 1.0])
-        # frustum_arc assumes an unrolled camera: a camera rolled about its axis needs
-        # the whole circle here (visibility.ALL) or a wider arc.
-        self._cull(eye_xyz_m, frustum_arc(yaw_rad, pitch_rad, camera.fov_rad))
+        view = pybullet.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), up.tolist())
+        self._cull(eye_xyz_m, arc)
         proj = pybullet.computeProjectionMatrixFOV(
             fov=math.degrees(camera.fov_rad), aspect=1.0, nearVal=NEAR_M, farVal=FAR_M
         )
@@ -294,6 +321,19 @@ class World:
         )
         fractions = np.array([h[2] if h[0] >= 0 else 1.0 for h in hits])
         return fractions * max_range_m
+
+
+def body_rotation(heading_rad: float, roll_rad: float, pitch_rad: float) -> np.ndarray:
+    """World-from-body rotation of a robot: heading about z, then pitch about its
+    y (left) axis, nose down positive, then roll about its x (forward) axis."""
+    cz, sz = math.cos(heading_rad), math.sin(heading_rad)
+    cp, sp = math.cos(pitch_rad), math.sin(pitch_rad)
+    cr, sr = math.cos(roll_rad), math.sin(roll_rad)
+    yaw = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    pitch = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    roll = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    matrix: np.ndarray = yaw @ pitch @ roll
+    return matrix
 
 
 @functools.lru_cache(maxsize=4)

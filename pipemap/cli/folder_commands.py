@@ -12,7 +12,12 @@ import sys
 from typing import Any, TextIO
 
 from pipemap import api
-from pipemap.cli.parser import fast_config, port_check, two_view_settings
+from pipemap.cli.parser import (
+    fast_config,
+    illumination_setting,
+    port_check,
+    two_view_settings,
+)
 from pipemap.imagesets import load_image_sets
 from pipemap.localizer import (
     ImageSet,
@@ -109,6 +114,7 @@ def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         two_view=two_view,
         verify=verify,
         port_check=port_check(args),
+        lamp=illumination_setting(args),
     )
     doc = api.map_image_sets(args.dirs, config, args.fov_deg, args.keep_top)
     if args.json:

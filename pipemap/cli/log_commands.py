@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import signal
 import sys
 from collections.abc import Callable
@@ -77,6 +78,11 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
 
+    if args.tilt_deg > 0.0 and args.condition == "autonomous":
+        raise InputError(
+            "--tilt-deg: the autonomous robot stands level for now; tilt it in a "
+            "placement condition (perfect, noise, active, entrance)"
+        )
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
@@ -105,6 +111,8 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         align_sweeps=args.align_sweeps,
         threshold=args.threshold,
         explore=Explore(args.explore),
+        lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
+        tilt_rad=math.radians(args.tilt_deg),
     )
     live = None
     if args.view and not args.save:

@@ -69,6 +69,7 @@ def _degrees(text: str) -> float:
 
 
 _zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (1, 2]")
+_tilt_deg = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 15.0, "not in [0, 15]")
 _highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
 
 
@@ -190,11 +191,24 @@ def add_rule_options(p: argparse.ArgumentParser) -> None:
         help="recognise a junction by its images alone, even when the robot's exits do "
         "not line up with its known pipes (by default such a match is passed over)",
     )
+    p.add_argument(
+        "--illumination",
+        choices=["auto", "lamp", "even"],
+        default="auto",
+        help="lamp: divide every image by its own illumination estimate before matching "
+        "(sweeps lit by the robot's lamp); even: as in the paper; auto (default): lamp "
+        "when the log's camera had its lamp on, even for image folders",
+    )
 
 
 def port_check(args: argparse.Namespace) -> bool:
     """``port_check`` of :class:`localizer.LocalizerConfig` from ``--no-port-check``."""
     return not getattr(args, "no_port_check", False)
+
+
+def illumination_setting(args: argparse.Namespace) -> bool | None:
+    """``lamp`` of :class:`localizer.LocalizerConfig` from ``--illumination``."""
+    return {"auto": None, "lamp": True, "even": False}[args.illumination]
 
 
 def two_view_settings(args: argparse.Namespace) -> tuple[bool, bool]:
@@ -231,6 +245,21 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         help=f"placement at junctions, as in the paper (default {condition})",
     )
     p.add_argument("--resolution", type=_resolution, default=400, help="image size in px (400)")
+    p.add_argument(
+        "--lighting",
+        choices=["lamp", "even"],
+        default="lamp",
+        help="lamp (default): a dark pipe lit only by the robot's lamp at the camera; "
+        "even: every surface evenly lit, as in the paper's simulation",
+    )
+    p.add_argument(
+        "--tilt-deg",
+        type=_tilt_deg,
+        default=0.0,
+        metavar="DEG",
+        help="the robot off level: roll and pitch drawn at each junction within +-DEG "
+        "(seeded; placement conditions only; default 0, level)",
+    )
     p.add_argument(
         "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
     )

@@ -15,7 +15,12 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from pipemap.cli.outputs import output_file, output_folder, write_text
-from pipemap.cli.parser import fast_config, port_check, two_view_settings
+from pipemap.cli.parser import (
+    fast_config,
+    illumination_setting,
+    port_check,
+    two_view_settings,
+)
 from pipemap.errors import WriteError
 
 __all__ = [
@@ -42,6 +47,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         two_view=two_view,
         verify=verify,
         port_check=port_check(args),
+        lamp=illumination_setting(args),
     )
 
 

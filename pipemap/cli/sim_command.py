@@ -12,6 +12,7 @@ themselves).
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import shutil
 import sys
@@ -67,6 +68,11 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
 
+    if args.tilt_deg > 0.0 and args.condition == "autonomous":
+        raise InputError(
+            "--tilt-deg: the autonomous robot stands level for now; tilt it in a "
+            "placement condition (perfect, noise, active, entrance)"
+        )
     target = output_folder(args.save_sweeps, "--save-sweeps", args.force)
     network = build_network(args.network, seed=args.seed)
     condition = Condition(args.condition)
@@ -74,13 +80,15 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
         )
-    camera = CameraSpec(resolution_px=args.resolution)
+    lamp = 1.0 if args.lighting == "lamp" else 0.0
+    camera = CameraSpec(resolution_px=args.resolution, lamp_strength=lamp)
     config = SimConfig(
         condition=condition,
         seed=args.seed,
         camera=camera,
         images_per_sweep=args.images,
         align_sweeps=args.align_sweeps,
+        tilt_rad=math.radians(args.tilt_deg),
     )
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
@@ -89,9 +97,10 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         episode = Episode(world, config, start=args.start)
         localizer = None
         if condition is Condition.ACTIVE:
-            from pipemap.localizer import Localizer
+            from pipemap.localizer import Localizer, LocalizerConfig
 
-            localizer = Localizer()
+            # It asks for probes as the recorder's would: normalising lamp-lit sweeps.
+            localizer = Localizer(LocalizerConfig().for_camera(camera.lamp_strength > 0.0))
         sweeps = 0
         for visit in episode.visits():
             folder = target / f"{visit.index + 1:04d}"
@@ -118,14 +127,16 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  #
     """The full exploration by the sensor-driven controller; sweeps are kept whatever
     ends it. With ``--explore map`` the localizer runs online and the robot explores
     its map; each sweep's ``sweep.txt`` then holds its exits and departure too."""
-    from pipemap.localizer import Localizer
+    from pipemap.localizer import Localizer, LocalizerConfig
     from pipemap.recorder.online import Explore, OnlineLocalizer, make_policy
     from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
     from pipemap.sim.stream import NodeDeparture, NodeExits, SimRecord
     from pipemap.sim.world import World
 
     explore = Explore(args.explore)
-    online = OnlineLocalizer(Localizer(), camera.fov_rad)
+    online = OnlineLocalizer(
+        Localizer(LocalizerConfig().for_camera(camera.lamp_strength > 0.0)), camera.fov_rad
+    )
     notes: dict[int, RobotNotes] = {}
 
     def sink(record: SimRecord) -> None:

@@ -352,3 +352,15 @@ def test_record_hands_the_exploration_policy_to_the_run(
     assert seen[0].metadata(build_network("paper"), "t")["explore"] == explore
     done = pipemap("record", "--network", "paper", "--explore", "left-hand", "-o", "x.mcap")
     assert done.returncode == 2 and "--explore" in done.stderr
+
+
+def test_the_log_records_the_lamp_and_lighting_even_turns_it_off(
+    recorded_run: Path, tmp_path: Path
+) -> None:
+    from pipemap.recorder.metadata import lamp_strength
+
+    assert lamp_strength(read_log(recorded_run).metadata[METADATA_RUN]) == 1.0
+    even = tmp_path / "even.mcap"
+    done = record(even, "--lighting", "even")
+    assert done.returncode == 0, done.stderr
+    assert lamp_strength(read_log(even).metadata[METADATA_RUN]) == 0.0

@@ -10,8 +10,9 @@ from pathlib import Path
 import pytest
 from mcap.writer import Writer as McapWriter
 
-from pipemap.localizer import dumps_document
+from pipemap.localizer import LocalizerConfig, dumps_document
 from pipemap.recorder import METADATA_RUN, LogWriter, Topic, read_log, schemas
+from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay import FileSource, replay
 
 
@@ -67,6 +68,18 @@ def test_replay_equals_the_online_decisions(recorded_run: Path) -> None:
         assert (logged.candidate if logged.HasField("candidate") else None) == d.candidate
         assert (logged.margin if logged.HasField("margin") else None) == d.margin
         assert [p.kind for p in logged.probes] == [p.request.kind.value for p in d.probes]
+
+
+def test_a_lamp_lit_log_is_normalised_as_its_camera_settings_say(recorded_run: Path) -> None:
+    source = FileSource(recorded_run)
+    assert lamp_strength(source.run_metadata()) == 1.0  # the default camera
+
+    def similarities(config: LocalizerConfig | None) -> list[float]:
+        return [v.decision.similarity for v in replay(source, config).visits]
+
+    as_logged = similarities(None)
+    assert as_logged == similarities(LocalizerConfig(lamp=True))
+    assert as_logged != similarities(LocalizerConfig(lamp=False))
 
 
 def test_a_cut_log_replays_its_complete_part(recorded_run: Path, tmp_path: Path) -> None:

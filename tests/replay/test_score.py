@@ -99,6 +99,22 @@ def test_score_text_formats(recorded_run: Path) -> None:
     assert row[4] == f"{second_known['similarity']:.3f}"
 
 
+def test_score_illumination_follows_the_log_unless_told(recorded_run: Path) -> None:
+    def scored(*flags: str) -> tuple[list[float], object]:
+        done = pipemap("score", str(recorded_run), "--json", *flags)
+        assert done.returncode == 0, done.stderr
+        doc = json.loads(done.stdout)
+        return [v["similarity"] for v in doc["per_visit"]], doc["pairs"]
+
+    auto = scored()
+    assert auto == scored("--illumination", "lamp")  # the log's camera had its lamp on
+    even = scored("--illumination", "even")
+    # Decisions and the pair statistics (Table 1) both see the sets as the localizer does.
+    assert auto[0] != even[0] and auto[1] != even[1]
+    bad = pipemap("score", str(recorded_run), "--illumination", "dim")
+    assert bad.returncode == 2 and "--illumination" in bad.stderr
+
+
 def test_score_needs_the_truth(recorded_run: Path, tmp_path: Path) -> None:
     contents = read_log(recorded_run)
     blind = tmp_path / "blind.mcap"

@@ -120,7 +120,8 @@ def test_perfect_tour_separates_same_from_different_junctions(
     tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
     target = tmp_path / "perfect"
-    status, _, err = _run(["sim", "--network", "paper", "--save-sweeps", str(target)], capfd)
+    argv = ["sim", "--network", "paper", "--lighting", "even"]  # the paper's simulation
+    status, _, err = _run([*argv, "--save-sweeps", str(target)], capfd)
     assert status == 0, err
     folders = sorted(target.iterdir())
     sets = [load_image_set(f) for f in folders]
@@ -212,3 +213,35 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
 
     assert [type(p) for p in policies] == [MapPolicy, RightHandPolicy]
     assert "explore right-hand" in out
+
+
+def test_lighting_even_turns_the_lamp_off(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """The lamp is on by default; ``--lighting even`` gives the paper's evenly lit look."""
+    images = {}
+    for lighting in ("lamp", "even", None):
+        target = tmp_path / str(lighting)
+        argv = ["sim", "--network", "paper", "--resolution", "32"]
+        argv += [] if lighting is None else ["--lighting", lighting]
+        status, _, err = _run([*argv, "--save-sweeps", str(target)], capfd)
+        assert status == 0, err
+        images[lighting] = np.stack([load_image_set(f).images for f in sorted(target.iterdir())])
+    assert np.array_equal(images[None], images["lamp"])
+    # Under the lamp alone the far pipe is dark: its darkest tenth is much darker.
+    assert np.percentile(images["lamp"], 10) < 0.5 * np.percentile(images["even"], 10)
+
+
+def test_map_normalises_image_folders_only_when_told(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "run"
+    argv = ["sim", "--network", "paper", "--resolution", "32", "--save-sweeps", str(target)]
+    assert _run(argv, capfd)[0] == 0
+    folders = [str(f) for f in sorted(target.iterdir())]
+    docs = {}
+    for illumination in ("auto", "even", "lamp"):
+        status, out, err = _run(["map", *folders, "--json", "--illumination", illumination], capfd)
+        assert status == 0, err
+        docs[illumination] = [v["similarity"] for v in json.loads(out)["visits"]]
+    assert docs["auto"] == docs["even"] != docs["lamp"]

@@ -11,6 +11,7 @@ from pipemap.errors import SimError
 from pipemap.sim import CameraSpec, Condition, Episode, SimConfig, World, build_network
 
 SMALL = CameraSpec(resolution_px=96)
+EVEN = CameraSpec(resolution_px=96, lamp_strength=0.0)
 
 
 @pytest.fixture(scope="module")
@@ -34,8 +35,19 @@ def test_every_view_from_a_junction_sees_walls(paper_world) -> None:  # type: ig
     for node in "SABCDEF":
         n = paper_world.network.node(node)
         for j in range(6):
-            image = paper_world.render((n.x_m + 1e-4, n.y_m + 1e-4, 0.05), j * math.pi / 3, SMALL)
+            image = paper_world.render((n.x_m + 1e-4, n.y_m + 1e-4, 0.05), j * math.pi / 3, EVEN)
             assert np.mean(image.max(axis=2) == 0) < 0.01, (node, j)
+
+
+def test_the_lamp_is_on_by_default_and_the_far_pipe_stays_dark(paper_world) -> None:  # type: ignore[no-untyped-def]
+    assert CameraSpec().lamp_strength == 1.0
+    eye = (0.0001, 1.5001, 0.05)  # in the main pipe, looking along it (east, to B)
+    lamp = paper_world.render(eye, 0.0, SMALL).astype(float).mean(axis=2)
+    even = paper_world.render(eye, 0.0, EVEN).astype(float).mean(axis=2)
+    centre = (slice(40, 56), slice(40, 56))  # down the pipe, a metre away
+    assert lamp[centre].mean() < 0.2 * even[centre].mean()
+    # The wall beside the camera is lit about as brightly as even light shows it.
+    assert lamp[:, :8].mean() > 0.5 * even[:, :8].mean()
 
 
 def test_range_rays_hit_the_walls_where_geometry_says(paper_world) -> None:  # type: ignore[no-untyped-def]

@@ -1,0 +1,82 @@
+"""Illumination normalisation: images of a dark pipe lit by the robot's own lamp.
+
+A buried pipe has no light but the lamp the robot carries at its camera. Its light
+falls with the square of the distance and with the angle of incidence, so every
+view shows the same bright near wall and the same dark hole down the pipe, whatever
+the junction. That shared vignette dominates a whole-image correlation: measured on
+the paper's network (``benchmarks/bench_lamp.py``, docs/lighting.md), different
+junctions scored up to 0.85 under a full-strength lamp, far above the paper's
+threshold 0.36.
+
+The lamp's light multiplies the wall's reflectance, and it varies slowly across
+the image where the wall's stains, joints and openings vary fast. Dividing each
+image by a wide Gaussian blur of itself (a flat-field correction by the image's own
+estimate of its illumination, as retinex-style methods do) leaves the reflectance:
+the near wall and the far wall then show their texture at one contrast. Where the
+blur is darker than ``floor`` grey levels (beyond the lamp's reach) there is
+nothing to recover, and the floor keeps the sensor's noise from being amplified.
+
+Pure numpy and OpenCV on images; the localizer applies it to every sweep it sees
+when :attr:`localizer.LocalizerConfig.lamp` says the camera is lamp-lit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from pipemap.errors import LocalizerError
+from pipemap.localizer.imageset import ImageSet
+
+__all__ = ["IlluminationConfig", "normalised"]
+
+
+@dataclass(frozen=True)
+class IlluminationConfig:
+    """Settings of :func:`normalised`."""
+
+    #: Sigma of the illumination estimate, as a fraction of the image width.
+    sigma_fraction: float = 0.0625
+    #: Grey levels added to the estimate before dividing: darker regions stay dark.
+    floor: float = 2.0
+    #: The grey level a wall of average reflectance gets.
+    level: float = 100.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.sigma_fraction <= 1.0:
+            raise LocalizerError(f"sigma_fraction must be in (0, 1], got {self.sigma_fraction}")
+        if not self.floor > 0.0:
+            raise LocalizerError(f"floor must be > 0 grey levels, got {self.floor}")
+        if not 0.0 < self.level <= 255.0:
+            raise LocalizerError(f"level must be in (0, 255], got {self.level}")
+
+
+def _blurred(image: np.ndarray, sigma_px: float) -> np.ndarray:
+    """A Gaussian blur of ``sigma_px``, computed on an image shrunk by up to sigma/4
+    (a blur this wide is smooth) and enlarged again."""
+    h, w = image.shape
+    factor = max(1, min(int(sigma_px // 4), h // 4, w // 4))
+    small = cv2.resize(image, (w // factor, h // factor), interpolation=cv2.INTER_AREA)
+    small = cv2.GaussianBlur(small, (0, 0), sigma_px / factor, borderType=cv2.BORDER_REFLECT)
+    out: np.ndarray = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+    return out
+
+
+def normalised(image_set: ImageSet, config: IlluminationConfig | None = None) -> ImageSet:
+    """The set with each image divided by its own illumination estimate.
+
+    Every pixel becomes ``level * image / (blur + floor)``, clipped to 0..255: a
+    wall lit twice as brightly keeps its value, and an evenly lit image changes
+    only by its slow shading. The whole image is filtered (the kept top part's
+    lower edge sees its true neighbours); the set's geometry is kept.
+    """
+    config = config if config is not None else IlluminationConfig()
+    images = np.asarray(image_set.images, dtype=np.float32)
+    sigma_px = config.sigma_fraction * image_set.width
+    out = np.empty_like(images)
+    for i, image in enumerate(images):
+        light = _blurred(image, sigma_px)
+        out[i] = np.clip(config.level * (image + config.floor) / (light + config.floor), 0.0, 255.0)
+    return replace(image_set, images=out)
