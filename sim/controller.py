@@ -95,8 +95,9 @@ class ExplorerConfig:
     opening_factor: float = 1.7
     wall_ahead_m: float = 0.12
     scan_open_m: float = 0.25
-    #: An exit's heading is the mean of its opening's samples that see at least this
-    #: share as far as the farthest (see :meth:`Explorer._openings`).
+    #: An exit is reported at the mean of its opening's samples that see at least this
+    #: share as far as the farthest (see :meth:`Explorer._openings`); the robot steers
+    #: by the mean of all of them.
     exit_depth_fraction: float = 0.8
     sweep_step_ns: int = 500_000_000
     images_per_sweep: int = 6
@@ -548,10 +549,13 @@ class Explorer:
             return None
         return self._straight(error, self._yaw_est)
 
-    def _scan(self) -> list[float]:
-        """Turn once round in place; the headings (estimated) of the exits: each
-        opening's deepest samples (see :meth:`_openings`)."""
-        return self._openings(self._scan_samples(), self.config.exit_depth_fraction)
+    def _scan(self) -> tuple[list[float], list[float]]:
+        """Turn once round in place; the headings (estimated) of the exits, twice, in
+        the same order: as reported (each opening's deepest samples, the pipe's axis;
+        see :meth:`_openings`) and as steered by (each opening's middle, which keeps
+        the robot clear of the mouth's walls)."""
+        samples = self._scan_samples()
+        return self._openings(samples, self.config.exit_depth_fraction), self._openings(samples)
 
     def _openings(self, samples: list[tuple[float, float]], depth: float = 0.0) -> list[float]:
         """Headings of the openings in a scan: runs of samples that see far.
@@ -611,7 +615,7 @@ class Explorer:
                     break
             first = False
             self._sweep()
-            exits = self._scan()
+            exits, steer = self._scan()
             visit = len(self._result.sweeps)
             relative = tuple(math.remainder(e - arrival, 2.0 * math.pi) for e in exits)
             x, y = (float(v) for v in self._xy_est)
@@ -626,9 +630,11 @@ class Explorer:
                 if choice.stop is not RunStatus.FINISHED:
                     self._event(f"stopped: {choice.stop.value}", warning=True)
                 break
-            heading = arrival + math.pi if choice.exit_index is None else exits[choice.exit_index]
+            back = arrival + math.pi
+            reported = back if choice.exit_index is None else exits[choice.exit_index]
+            heading = back if choice.exit_index is None else steer[choice.exit_index]
             if self._sink is not None:
-                turn = math.remainder(heading - arrival, 2.0 * math.pi)
+                turn = math.remainder(reported - arrival, 2.0 * math.pi)
                 self._sink(NodeDeparture(self.robot.t_ns, visit, len(exits), turn))
             self._turn_to(heading)
             self._state = "leaving node"
