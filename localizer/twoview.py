@@ -86,6 +86,17 @@ class TwoViewConfig:
     #: Lowe's ratio when matching only overlapping images: fewer keypoints compete
     #: for second best there, so ambiguous matches pass more easily at ``ratio``.
     overlap_ratio: float = 0.8
+    #: Two stages: every ``gate_every``-th keypoint of the known sweep is matched
+    #: first, and the fit gives up when those matches' best count on the coarse grid
+    #: is below ``gate_share`` of ``min_inliers / gate_every`` (what that share of a
+    #: fit that just passes would give; no gate where that is below 2, as for the
+    #: plain fit's 12). Then the rest are matched; together they are the very
+    #: matches of one stage, so a fit that passes the gate is unchanged.
+    #: The paper's 55 pairs at 400 px (every image against every image): different
+    #: junctions reach 7 at most on that grid, same ones 20 or more (95 or more
+    #: inliers in the end). ``gate_every = 1``: one stage.
+    gate_every: int = 4
+    gate_share: float = 0.5
     #: Rotation searched within this angle of the peak of the matches' azimuth
     #: differences (parallax at 3 cm off centre reaches about 0.3 rad).
     search_rad: float = 0.3
@@ -304,14 +315,27 @@ def sweep_features(image_set: ImageSet, config: TwoViewConfig | None = None) -> 
 
 def _ratio_matches(a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
     """Indices into descriptors ``a`` and ``b`` of the pairs that pass the ratio test
-    (each of ``b``'s keypoints with its nearest in ``a``)."""
+    (each of ``b``'s keypoints with its nearest in ``a``), in ``b``'s order.
+
+    The Hamming distances are counted by numpy on the descriptors' four 64-bit words:
+    1.5 to 2.5 times faster than OpenCV's brute-force ``knnMatch`` on a few hundred
+    keypoints, with the very same pairs (the nearest is unique wherever the test
+    passes, so how ties are broken does not matter).
+    """
     if len(a) < 2 or len(b) < 1:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(b, a, k=2)
-    good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < ratio * p[1].distance]
-    ia = np.array([g.trainIdx for g in good], dtype=np.int64)
-    ib = np.array([g.queryIdx for g in good], dtype=np.int64)
-    return ia, ib
+    words_a = np.ascontiguousarray(a).view(np.uint64)
+    words_b = np.ascontiguousarray(b).view(np.uint64)
+    distance = np.bitwise_count(words_b[:, None, 0] ^ words_a[None, :, 0]).astype(np.int16)
+    for w in range(1, words_a.shape[1]):
+        distance += np.bitwise_count(words_b[:, None, w] ^ words_a[None, :, w])
+    rows = np.arange(len(b))
+    nearest = np.argmin(distance, axis=1)
+    best = distance[rows, nearest].astype(np.float64)
+    distance[rows, nearest] = np.iinfo(np.int16).max
+    second = distance.min(axis=1).astype(np.float64)
+    good = best < ratio * second
+    return nearest[good].astype(np.int64), rows[good].astype(np.int64)
 
 
 def overlapping_images(
@@ -342,22 +366,40 @@ def _matches(
     b: SweepFeatures,
     ratio: float,
     overlap: list[np.ndarray] | None = None,
+    only: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Indices into ``a`` and ``b`` of the keypoints that pass the ratio test: each
     image of ``b`` against the images of ``a`` that ``overlap`` lists for it (see
-    :func:`overlapping_images`), or every keypoint against every other."""
+    :func:`overlapping_images`), or every keypoint against every other; of ``b``'s
+    keypoints, only those ``only`` (a mask) marks, if given. In ``b``'s order."""
     if len(a) < 2 or len(b) < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     if overlap is None or a.image is None or b.image is None:
-        return _ratio_matches(a.descriptors, b.descriptors, ratio)
+        if only is None:
+            return _ratio_matches(a.descriptors, b.descriptors, ratio)
+        chosen = np.flatnonzero(only)
+        ia, ib = _ratio_matches(a.descriptors, b.descriptors[chosen], ratio)
+        return ia, chosen[ib]
     found_a, found_b = [], []
     for k, images in enumerate(overlap):
-        in_b = np.flatnonzero(b.image == k)
+        mine = b.image == k
+        in_b = np.flatnonzero(mine if only is None else mine & only)
         in_a = np.flatnonzero(np.isin(a.image, images))
         ia, ib = _ratio_matches(a.descriptors[in_a], b.descriptors[in_b], ratio)
         found_a.append(in_a[ia])
         found_b.append(in_b[ib])
     return np.concatenate(found_a), np.concatenate(found_b)
+
+
+def _merged(
+    b: SweepFeatures, first: tuple[np.ndarray, np.ndarray], rest: tuple[np.ndarray, np.ndarray]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Two stages' matches (of complementary keypoints of ``b``) in the order one
+    stage of :func:`_matches` gives them: by ``b``'s image, then by keypoint."""
+    ia = np.concatenate([first[0], rest[0]])
+    ib = np.concatenate([first[1], rest[1]])
+    order = np.lexsort((ib, b.image[ib])) if b.image is not None else np.argsort(ib)
+    return ia[order], ib[order]
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -456,6 +498,27 @@ def _azimuth_peak(a: np.ndarray, b: np.ndarray) -> float:
     return wrap_angle_rad((int(np.argmax(smooth)) + 0.5) * 2.0 * math.pi / bins)
 
 
+def _coarse(
+    query: SweepFeatures,
+    known: SweepFeatures,
+    found: tuple[np.ndarray, np.ndarray],
+    guess_rad: float | None,
+    config: TwoViewConfig,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """The coarse search of :func:`fit_two_view` on the matches ``found``: the counts
+    of every rotation (around the azimuth peak and the guess) and direction, the
+    rotations, and the centres they lie around (the peak first)."""
+    a, b = query.bearings[found[0]], known.bearings[found[1]]
+    if len(a) == 0:
+        return np.zeros((0, config.direction_steps), np.int64), np.zeros(0), []
+    offsets = np.linspace(-config.search_rad, config.search_rad, config.rotation_steps)
+    centres = [_azimuth_peak(a, b)] + ([] if guess_rad is None else [guess_rad])
+    rotations = np.concatenate([centre + offsets for centre in centres])
+    counts = _grid_counts(a, b, rotations, config.direction_steps, tolerance)
+    return counts, rotations, centres
+
+
 def fit_two_view(
     query: SweepFeatures,
     known: SweepFeatures,
@@ -475,18 +538,22 @@ def fit_two_view(
     if guess_rad is not None and config.overlap_only:
         overlap = overlapping_images(query, known, guess_rad, config.overlap_margin_rad)
     ratio = config.ratio if overlap is None else config.overlap_ratio
-    ia, ib = _matches(query, known, ratio, overlap)
+    tolerance = config.inlier_px * max(query.pixel_rad, known.pixel_rad)
+    gate = int(config.gate_share * config.min_inliers / max(1, config.gate_every))
+    if config.gate_every > 1 and gate >= 2:
+        first = np.arange(len(known)) % config.gate_every == 0
+        found = _matches(query, known, ratio, overlap, first)
+        if _coarse(query, known, found, guess_rad, config, tolerance)[0].max(initial=0) < gate:
+            return None
+        ia, ib = _merged(known, found, _matches(query, known, ratio, overlap, ~first))
+    else:
+        ia, ib = _matches(query, known, ratio, overlap)
     if len(ia) < config.min_inliers:
         return None
     a, b = query.bearings[ia], known.bearings[ib]
     needed = max(config.min_inliers, config.min_inlier_share * len(a))
-    tolerance = config.inlier_px * max(query.pixel_rad, known.pixel_rad)
-    # Coarse: rotation grids around the centres, directions over half a turn.
-    offsets = np.linspace(-config.search_rad, config.search_rad, config.rotation_steps)
-    centres = [_azimuth_peak(a, b)] + ([] if guess_rad is None else [guess_rad])
-    rotations = np.concatenate([centre + offsets for centre in centres])
+    counts, rotations, centres = _coarse(query, known, (ia, ib), guess_rad, config, tolerance)
     directions = np.linspace(0.0, math.pi, config.direction_steps, endpoint=False)
-    counts = _grid_counts(a, b, rotations, config.direction_steps, tolerance)
     per_rotation = counts.max(axis=1)
     r = int(np.argmax(per_rotation))  # the first best rotation, its first best direction
     best = (int(per_rotation[r]), float(rotations[r]), float(directions[int(np.argmax(counts[r]))]))

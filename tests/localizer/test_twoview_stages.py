@@ -1,0 +1,124 @@
+"""The two-view check's speed-ups keep its answers: the Hamming matcher gives
+OpenCV's pairs, and the two-stage match (a gate on every fourth keypoint) gives the
+one-stage fit wherever it goes on, and stops early where it does not."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from pipemap.localizer import twoview
+from pipemap.localizer.fastmatch import FastMatcher
+from pipemap.localizer.twoview import TwoViewConfig, _ratio_matches, fit_two_view, sweep_features
+from tests.conftest import PaperSet
+
+
+def _opencv_ratio_matches(
+    a: np.ndarray, b: np.ndarray, ratio: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs OpenCV's brute-force matcher and Lowe's test give (what
+    ``_ratio_matches`` replaced)."""
+    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(b, a, k=2)
+    good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < ratio * p[1].distance]
+    return (
+        np.array([g.trainIdx for g in good], dtype=np.int64),
+        np.array([g.queryIdx for g in good], dtype=np.int64),
+    )
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_hamming_matcher_gives_opencvs_pairs(seed: int) -> None:
+    """Half of ``b`` are noisy copies of ``a``'s descriptors (some exact, so that
+    the nearest ties with a duplicate in ``a``), half unrelated."""
+    rng = np.random.default_rng(seed)
+    a = rng.integers(0, 256, (int(rng.integers(2, 500)), 32), dtype=np.uint8)
+    a[1::7] = a[::7][: len(a[1::7])]  # duplicates: a tie for nearest fails the test
+    copies = a[rng.integers(0, len(a), 120)].copy()
+    flips = (rng.random(copies.shape) < 0.04) * rng.integers(1, 256, copies.shape)
+    b = np.concatenate([copies ^ flips.astype(np.uint8), rng.integers(0, 256, (80, 32), np.uint8)])
+    for ratio in (0.7, 0.8, 0.9):
+        ia, ib = _ratio_matches(a, b, ratio)
+        ja, jb = _opencv_ratio_matches(a, b, ratio)
+        assert len(ia) > 0
+        assert np.array_equal(ia, ja) and np.array_equal(ib, jb)
+
+
+def test_hamming_matcher_needs_two_to_compare() -> None:
+    one = np.zeros((1, 32), np.uint8)
+    assert len(_ratio_matches(one, one, 0.8)[0]) == 0
+
+
+def _paper_features(paper_sets: dict[str, PaperSet], name: str) -> twoview.SweepFeatures:
+    return sweep_features(paper_sets[name].images)
+
+
+@pytest.fixture(scope="module")
+def features(paper_sets: dict[str, PaperSet]) -> dict[str, twoview.SweepFeatures]:
+    names = ["1", "1_noise", "2_active", "3_noise", "4", "10"]
+    return {n: _paper_features(paper_sets, n) for n in names}
+
+
+def _guess(paper_sets: dict[str, PaperSet], query: str, known: str) -> float:
+    matcher = FastMatcher()
+    matcher.add(matcher.prepare(paper_sets[known].images))
+    return matcher.match(matcher.prepare(paper_sets[query].images))[0].rotation_rad
+
+
+@pytest.mark.parametrize("with_guess", [True, False])
+def test_two_stages_give_the_one_stage_fit(
+    paper_sets: dict[str, PaperSet],
+    features: dict[str, twoview.SweepFeatures],
+    with_guess: bool,
+) -> None:
+    """Same junction, from other entries: the fit after the gate is the fit of one
+    stage to the last bit (same matches in the same order, so the same search)."""
+    one_stage = TwoViewConfig(gate_every=1, min_inliers=48)
+    two_stage = TwoViewConfig(min_inliers=48)
+    assert two_stage.gate_every == 4
+    for q, k in [("1", "1_noise"), ("1_noise", "2_active"), ("3_noise", "1")]:
+        guess = _guess(paper_sets, q, k) if with_guess else None
+        one = fit_two_view(features[q], features[k], one_stage, guess)
+        two = fit_two_view(features[q], features[k], two_stage, guess)
+        assert one is not None and one.inliers >= 48
+        assert two == one
+
+
+@pytest.fixture
+def seen(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """How many keypoints of the known sweep each Hamming matching took."""
+    counts: list[int] = []
+    real = twoview._ratio_matches
+
+    def counting(a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+        counts.append(len(b))
+        return real(a, b, ratio)
+
+    monkeypatch.setattr(twoview, "_ratio_matches", counting)
+    return counts
+
+
+def test_the_gate_stops_a_different_junction_after_a_quarter(
+    seen: list[int], features: dict[str, twoview.SweepFeatures]
+) -> None:
+    """Different junctions: only every fourth keypoint of the known sweep is matched,
+    and the answer is the one-stage answer (no fit)."""
+    config = TwoViewConfig(min_inliers=48)
+    for q, k in itertools.permutations(["1", "4", "10"], 2):
+        seen.clear()
+        assert fit_two_view(features[q], features[k], config, None) is None
+        matched = sum(seen)
+        assert matched == len(range(0, len(features[k]), 4))
+        seen.clear()
+        assert fit_two_view(features[q], features[k], replace(config, gate_every=1)) is None
+        assert sum(seen) == len(features[k])
+
+
+def test_no_gate_below_two(seen: list[int], features: dict[str, twoview.SweepFeatures]) -> None:
+    """The plain fit's 12 inliers would make a gate of 1.5: one stage then, so a weak
+    fit (the rotation of a revisit without the check) is never cut short."""
+    fit_two_view(features["1"], features["4"], TwoViewConfig(), None)
+    assert seen == [len(features["4"])]
