@@ -652,14 +652,9 @@ class FastMatcher:
             return []
         scores = _offset_scores(peaks)  # (M, N)
         baselines = [(query.baseline + known.baseline) / 2.0 for known in self._sets]
-        matches = [
-            replace(m, similarity=m.similarity - b)
-            for m, b in zip(
-                _screened_matches(scores, shifts, query.fov_rad, query.width_px),
-                baselines,
-                strict=True,
-            )
-        ]
+        # Rotations between the robots' headings, not between the sweeps' cameras.
+        turns = [query.camera_angle_rad - known.camera_angle_rad for known in self._sets]
+        matches = _screened_matches(scores, shifts, query.fov_rad, query.width_px, baselines, turns)
         order = sorted(
             (i for i in range(len(matches)) if i != exclude),
             key=lambda i: (-matches[i].similarity, i),
@@ -689,12 +684,10 @@ class FastMatcher:
                     peak_ncc[j, (j + k) % n] = values[b]
                     peak_dx[j, (j + k) % n] = columns[b] * (fine.full_width_px / fine.width)
             refined = best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
-            matches[i] = replace(refined, similarity=refined.similarity - baselines[i])
-        # Rotations between the robots' headings, not between the sweeps' cameras.
-        return [
-            m.turned(query.camera_angle_rad - known.camera_angle_rad)
-            for m, known in zip(matches, self._sets, strict=True)
-        ]
+            matches[i] = replace(refined, similarity=refined.similarity - baselines[i]).turned(
+                turns[i]
+            )
+        return matches
 
 
 #: Known sets whose refinement spectra a matcher keeps at hand.
@@ -716,12 +709,20 @@ def _kept(prepared: PreparedSet) -> PreparedSet:
 
 
 def _screened_matches(
-    scores: np.ndarray, shifts: np.ndarray, fov_rad: float, width_px: int
+    scores: np.ndarray,
+    shifts: np.ndarray,
+    fov_rad: float,
+    width_px: int,
+    baselines: list[float] | None = None,
+    turns: list[float] | None = None,
 ) -> list[SetMatch]:
-    """Algorithm 2's choice for every screened junction at once (``refined=False``).
+    """Algorithm 2's choice for every screened junction at once (``refined=False``),
+    less junction i's baseline ``baselines[i]`` and turned by ``turns[i]`` (see
+    :meth:`SetMatch.turned`), if given.
 
     The same arithmetic as :func:`localizer.similarity.best_offset`, vectorized over
-    the M junctions so that screening a large database costs no Python loop.
+    the M junctions; one record each, built once (at a thousand junctions, building
+    and replacing records cost more than the arithmetic).
     """
     m, n = scores.shape
     j = np.arange(n)
@@ -732,17 +733,27 @@ def _screened_matches(
     focal_px = (width_px / 2.0) / math.tan(fov_rad / 2.0)
     median_angle = np.median(2.0 * np.arctan(pair_shifts / (2.0 * focal_px)), axis=1)
     step = 2.0 * math.pi / n
-    return [
-        SetMatch(
-            similarity=float(scores[i, best_k[i]]),
-            image_shift=int(best_k[i]),
-            pixel_shift=float(mean_shift[i]),
-            rotation_rad=wrap_angle_rad(best_k[i] * step + mean_shift[i] * fov_rad / width_px),
-            rotation_pinhole_rad=wrap_angle_rad(best_k[i] * step + median_angle[i]),
-            refined=False,
+    baselines = [0.0] * m if baselines is None else baselines
+    turns = [0.0] * m if turns is None else turns
+    out = []
+    for i, k in enumerate(best_k.tolist()):
+        rotation = wrap_angle_rad(k * step + mean_shift[i] * fov_rad / width_px)
+        pinhole = wrap_angle_rad(k * step + median_angle[i])
+        turn = turns[i]
+        if turn != 0.0:  # as SetMatch.turned does
+            rotation = wrap_angle_rad(rotation + turn)
+            pinhole = wrap_angle_rad(pinhole + turn)
+        out.append(
+            SetMatch(
+                similarity=float(scores[i, k]) - baselines[i],
+                image_shift=k,
+                pixel_shift=float(mean_shift[i]),
+                rotation_rad=rotation,
+                rotation_pinhole_rad=pinhole,
+                refined=False,
+            )
         )
-        for i in range(m)
-    ]
+    return out
 
 
 def _grown(array: np.ndarray, axis: int) -> np.ndarray:
