@@ -86,15 +86,16 @@ class TwoViewConfig:
     #: Lowe's ratio when matching only overlapping images: fewer keypoints compete
     #: for second best there, so ambiguous matches pass more easily at ``ratio``.
     overlap_ratio: float = 0.8
-    #: Two stages: every ``gate_every``-th keypoint of the known sweep is matched
-    #: first, and the fit gives up when those matches' best count on the coarse grid
-    #: is below ``gate_share`` of ``min_inliers / gate_every`` (what that share of a
-    #: fit that just passes would give; no gate where that is below 2, as for the
-    #: plain fit's 12). Then the rest are matched; together they are the very
-    #: matches of one stage, so a fit that passes the gate is unchanged.
-    #: The paper's 55 pairs at 400 px (every image against every image): different
-    #: junctions reach 7 at most on that grid, same ones 20 or more (95 or more
-    #: inliers in the end). ``gate_every = 1``: one stage.
+    #: Matching in stages: the known sweep's keypoints ``k`` with ``k % gate_every``
+    #: = 0 first, then 1, ...; after stage ``s`` (of ``gate_every``) the fit gives up
+    #: when the matches so far have a best count on the coarse grid below
+    #: ``gate_share`` of ``min_inliers * s / gate_every`` (what that share of a fit
+    #: that just passes would give; no gate where the first stage's is below 2, as
+    #: for the plain fit's 12). All stages together are the very matches of one, put
+    #: back in its order, so a fit that passes every gate is unchanged. The paper's
+    #: 55 pairs at 400 px (every image against every image), after the first quarter:
+    #: different junctions reach 7 at most on that grid, same ones 20 or more (95 or
+    #: more inliers in the end). ``gate_every = 1``: one stage.
     gate_every: int = 4
     gate_share: float = 0.5
     #: Rotation searched within this angle of the peak of the matches' azimuth
@@ -381,10 +382,13 @@ def _matches(
         ia, ib = _ratio_matches(a.descriptors, b.descriptors[chosen], ratio)
         return ia, chosen[ib]
     found_a, found_b = [], []
+    member = np.zeros(max(len(overlap), int(a.image.max()) + 1), dtype=bool)
     for k, images in enumerate(overlap):
         mine = b.image == k
         in_b = np.flatnonzero(mine if only is None else mine & only)
-        in_a = np.flatnonzero(np.isin(a.image, images))
+        member[:] = False
+        member[images] = True
+        in_a = np.flatnonzero(member[a.image])
         ia, ib = _ratio_matches(a.descriptors[in_a], b.descriptors[in_b], ratio)
         found_a.append(in_a[ia])
         found_b.append(in_b[ib])
@@ -392,12 +396,12 @@ def _matches(
 
 
 def _merged(
-    b: SweepFeatures, first: tuple[np.ndarray, np.ndarray], rest: tuple[np.ndarray, np.ndarray]
+    b: SweepFeatures, parts: list[tuple[np.ndarray, np.ndarray]]
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Two stages' matches (of complementary keypoints of ``b``) in the order one
-    stage of :func:`_matches` gives them: by ``b``'s image, then by keypoint."""
-    ia = np.concatenate([first[0], rest[0]])
-    ib = np.concatenate([first[1], rest[1]])
+    """The matches of stages (of disjoint keypoints of ``b``) in the order one stage
+    of :func:`_matches` gives them: by ``b``'s image, then by keypoint."""
+    ia = np.concatenate([p[0] for p in parts])
+    ib = np.concatenate([p[1] for p in parts])
     order = np.lexsort((ib, b.image[ib])) if b.image is not None else np.argsort(ib)
     return ia[order], ib[order]
 
@@ -539,13 +543,19 @@ def fit_two_view(
         overlap = overlapping_images(query, known, guess_rad, config.overlap_margin_rad)
     ratio = config.ratio if overlap is None else config.overlap_ratio
     tolerance = config.inlier_px * max(query.pixel_rad, known.pixel_rad)
-    gate = int(config.gate_share * config.min_inliers / max(1, config.gate_every))
-    if config.gate_every > 1 and gate >= 2:
-        first = np.arange(len(known)) % config.gate_every == 0
-        found = _matches(query, known, ratio, overlap, first)
-        if _coarse(query, known, found, guess_rad, config, tolerance)[0].max(initial=0) < gate:
-            return None
-        ia, ib = _merged(known, found, _matches(query, known, ratio, overlap, ~first))
+    stages = max(1, config.gate_every)
+    gate = config.gate_share * config.min_inliers / stages
+    if stages > 1 and int(gate) >= 2:
+        part = np.arange(len(known)) % stages
+        found: list[tuple[np.ndarray, np.ndarray]] = []
+        for stage in range(stages):
+            found.append(_matches(query, known, ratio, overlap, part == stage))
+            if stage < stages - 1:
+                so_far = _merged(known, found)
+                counts = _coarse(query, known, so_far, guess_rad, config, tolerance)[0]
+                if counts.max(initial=0) < int(gate * (stage + 1)):
+                    return None
+        ia, ib = _merged(known, found)
     else:
         ia, ib = _matches(query, known, ratio, overlap)
     if len(ia) < config.min_inliers:

@@ -122,3 +122,25 @@ def test_no_gate_below_two(seen: list[int], features: dict[str, twoview.SweepFea
     fit (the rotation of a revisit without the check) is never cut short."""
     fit_two_view(features["1"], features["4"], TwoViewConfig(), None)
     assert seen == [len(features["4"])]
+
+
+@pytest.mark.parametrize(("counts", "stages_run"), [([5], 1), ([7, 11], 2), ([7, 13, 17], 3)])
+def test_each_stage_asks_for_its_share(
+    monkeypatch: pytest.MonkeyPatch,
+    seen: list[int],
+    features: dict[str, twoview.SweepFeatures],
+    counts: list[int],
+    stages_run: int,
+) -> None:
+    """After stage s of 4 the matches so far must reach half of s quarters of the
+    48 inliers on the coarse grid (6, 12, 18): the fit stops at the first stage
+    whose count falls short."""
+    given = iter(counts)
+
+    def coarse(*args: object) -> tuple[np.ndarray, np.ndarray, list[float]]:
+        return np.array([[next(given)]]), np.zeros(1), [0.0]
+
+    monkeypatch.setattr(twoview, "_coarse", coarse)
+    known = features["4"]
+    assert fit_two_view(features["1"], known, TwoViewConfig(min_inliers=48)) is None
+    assert sum(seen) == sum(len(range(s, len(known), 4)) for s in range(stages_run))
