@@ -548,12 +548,16 @@ def fit_two_view(
     if stages > 1 and int(gate) >= 2:
         part = np.arange(len(known)) % stages
         found: list[tuple[np.ndarray, np.ndarray]] = []
+        best = 0
         for stage in range(stages):
             found.append(_matches(query, known, ratio, overlap, part == stage))
-            if stage < stages - 1:
+            # More matches never lower a count: a gate the last count passes is passed.
+            if stage < stages - 1 and best < int(gate * (stage + 1)):
                 so_far = _merged(known, found)
-                counts = _coarse(query, known, so_far, guess_rad, config, tolerance)[0]
-                if counts.max(initial=0) < int(gate * (stage + 1)):
+                best = int(
+                    _coarse(query, known, so_far, guess_rad, config, tolerance)[0].max(initial=0)
+                )
+                if best < int(gate * (stage + 1)):
                     return None
         ia, ib = _merged(known, found)
     else:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import replace
+from typing import Any
 
 import cv2
 import numpy as np
@@ -144,3 +145,22 @@ def test_each_stage_asks_for_its_share(
     known = features["4"]
     assert fit_two_view(features["1"], known, TwoViewConfig(min_inliers=48)) is None
     assert sum(seen) == sum(len(range(s, len(known), 4)) for s in range(stages_run))
+
+
+def test_a_count_past_every_gate_is_not_counted_again(
+    monkeypatch: pytest.MonkeyPatch, features: dict[str, twoview.SweepFeatures]
+) -> None:
+    """A count never falls as matches are added: when the first quarter already
+    passes the last gate (18 of 48), the later gates cost no grid, only the fit."""
+    calls: list[int] = []
+    real = twoview._coarse
+
+    def counting(*args: Any) -> tuple[np.ndarray, np.ndarray, list[float]]:
+        calls.append(len(args[2][0]))
+        return real(*args)
+
+    monkeypatch.setattr(twoview, "_coarse", counting)
+    fit = fit_two_view(features["1"], features["1_noise"], TwoViewConfig(min_inliers=48))
+    assert fit is not None
+    assert len(calls) == 2  # the first quarter's gate, then the fit on every match
+    assert calls[0] < calls[1] == fit.matches
