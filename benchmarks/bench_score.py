@@ -1,0 +1,89 @@
+"""Decision latency during a replay: the defaults against the paper's NCC alone.
+
+    python benchmarks/bench_score.py LOG [--repeat N]
+
+Replays LOG the way ``pipemap score`` does (``api.replay``), once at pipemap's
+defaults and once without the two-view check (``--no-two-view``), N times each
+(3 by default), on one core, and times every ``Localizer.localize`` call by CPU
+(``time.process_time``) and wall clock. Per visit the quickest of the N tries is
+kept (the others measure what else the machine was doing); prints the mean,
+median and largest over the visits, and the ratio of the means. Issue 17's target:
+the defaults at most 2x ``--no-two-view`` on a 400 px ``paper`` log.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+
+from pipemap import api  # noqa: E402
+from pipemap.localizer import LocalizerConfig  # noqa: E402
+from pipemap.localizer import localizer as localizer_module  # noqa: E402
+
+cv2.setNumThreads(1)
+
+
+def timed_replay(log: api.Log, config: LocalizerConfig) -> list[tuple[float, float]]:
+    """(CPU s, wall s) of every localize call of one replay of ``log``."""
+    calls: list[tuple[float, float]] = []
+    real = localizer_module.Localizer.localize
+
+    def localize(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        cpu, wall = time.process_time(), time.perf_counter()
+        decision = real(self, *args, **kwargs)
+        calls.append((time.process_time() - cpu, time.perf_counter() - wall))
+        return decision
+
+    localizer_module.Localizer.localize = localize  # type: ignore[method-assign]
+    try:
+        api.replay(log, config)
+    finally:
+        localizer_module.Localizer.localize = real  # type: ignore[method-assign]
+    return calls
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("log", type=Path)
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    log = api.open_log(args.log)
+    defaults = LocalizerConfig()
+    configs = {
+        "defaults": defaults,
+        "--no-two-view": replace(defaults, two_view=False, verify=False),
+    }
+    tries: dict[str, list[list[tuple[float, float]]]] = {name: [] for name in configs}
+    for _ in range(args.repeat):
+        for name, config in configs.items():
+            tries[name].append(timed_replay(log, config))
+    means = {}
+    print(f"# {args.log.name}: {args.repeat} replays each, quickest per visit, one core")
+    for name, runs in tries.items():
+        cpu = [min(run[v][0] for run in runs) * 1000 for v in range(len(runs[0]))]
+        wall = [min(run[v][1] for run in runs) * 1000 for v in range(len(runs[0]))]
+        means[name] = statistics.fmean(cpu)
+        print(
+            f"{name:<14} {len(cpu)} decisions  CPU ms mean {means[name]:.1f} median "
+            f"{statistics.median(cpu):.1f} max {max(cpu):.1f}  wall ms mean "
+            f"{statistics.fmean(wall):.1f}"
+        )
+    print(
+        f"defaults / --no-two-view (CPU means): {means['defaults'] / means['--no-two-view']:.2f}x"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
