@@ -16,7 +16,7 @@ import pytest
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer import FastConfig, ImageSet, pairwise_matches
-from pipemap.localizer.fastmatch import _high_passed, _zoomed, prepare
+from pipemap.localizer.prepared import _high_passed, _zoomed, prepare
 from tests.conftest import PaperSet
 
 ROBUST = FastConfig(zooms=(1.15, 1.3), highpass_fraction=0.125)
