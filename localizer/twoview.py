@@ -42,13 +42,21 @@ guess, each image only with the images of the other sweep that can overlap it.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
+from pipemap.localizer.epipolar import (
+    _azimuth_peak,
+    _gauss_newton,
+    _grid_counts,
+    _planar_residuals,
+    _residuals,
+    _tilted,
+)
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.keymatch import _matches, _merged, overlapping_images
 from pipemap.localizer.similarity import wrap_angle_rad
 
 __all__ = [
@@ -314,194 +322,6 @@ def sweep_features(image_set: ImageSet, config: TwoViewConfig | None = None) -> 
     return stored_features(image_set, config).features()
 
 
-def _ratio_matches(a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
-    """Indices into descriptors ``a`` and ``b`` of the pairs that pass the ratio test
-    (each of ``b``'s keypoints with its nearest in ``a``), in ``b``'s order.
-
-    The Hamming distances are counted by numpy on the descriptors' four 64-bit words:
-    1.5 to 2.5 times faster than OpenCV's brute-force ``knnMatch`` on a few hundred
-    keypoints, with the very same pairs (the nearest is unique wherever the test
-    passes, so how ties are broken does not matter).
-    """
-    if len(a) < 2 or len(b) < 1:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    words_a = np.ascontiguousarray(a).view(np.uint64)
-    words_b = np.ascontiguousarray(b).view(np.uint64)
-    distance = np.bitwise_count(words_b[:, None, 0] ^ words_a[None, :, 0]).astype(np.int16)
-    for w in range(1, words_a.shape[1]):
-        distance += np.bitwise_count(words_b[:, None, w] ^ words_a[None, :, w])
-    rows = np.arange(len(b))
-    nearest = np.argmin(distance, axis=1)
-    best = distance[rows, nearest].astype(np.float64)
-    distance[rows, nearest] = np.iinfo(np.int16).max
-    second = distance.min(axis=1).astype(np.float64)
-    good = best < ratio * second
-    return nearest[good].astype(np.int64), rows[good].astype(np.int64)
-
-
-def overlapping_images(
-    a: SweepFeatures, b: SweepFeatures, rotation_rad: float, margin_rad: float
-) -> list[np.ndarray] | None:
-    """For each image of ``b``, the images of ``a`` it can overlap when ``b``'s heading
-    is ``rotation_rad`` from ``a``'s: their look directions, so turned, closer than
-    the wider field of view plus ``margin_rad`` (the parallax and the error of the
-    rotation). ``None`` when either sweep does not say where its images look."""
-    if (
-        a.image is None
-        or b.image is None
-        or a.image_azimuth_rad is None
-        or b.image_azimuth_rad is None
-        or a.fov_rad is None
-        or b.fov_rad is None
-    ):
-        return None
-    reach = max(a.fov_rad, b.fov_rad) + margin_rad
-    # A bearing of b at azimuth phi lies at phi + rotation in a's frame.
-    gap = b.image_azimuth_rad[:, None] + rotation_rad - a.image_azimuth_rad[None, :]
-    gap = np.abs(np.mod(gap + math.pi, 2.0 * math.pi) - math.pi)
-    return [np.flatnonzero(row < reach) for row in gap]
-
-
-def _matches(
-    a: SweepFeatures,
-    b: SweepFeatures,
-    ratio: float,
-    overlap: list[np.ndarray] | None = None,
-    only: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Indices into ``a`` and ``b`` of the keypoints that pass the ratio test: each
-    image of ``b`` against the images of ``a`` that ``overlap`` lists for it (see
-    :func:`overlapping_images`), or every keypoint against every other; of ``b``'s
-    keypoints, only those ``only`` (a mask) marks, if given. In ``b``'s order."""
-    if len(a) < 2 or len(b) < 2:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    if overlap is None or a.image is None or b.image is None:
-        if only is None:
-            return _ratio_matches(a.descriptors, b.descriptors, ratio)
-        chosen = np.flatnonzero(only)
-        ia, ib = _ratio_matches(a.descriptors, b.descriptors[chosen], ratio)
-        return ia, chosen[ib]
-    found_a, found_b = [], []
-    member = np.zeros(max(len(overlap), int(a.image.max()) + 1), dtype=bool)
-    for k, images in enumerate(overlap):
-        mine = b.image == k
-        in_b = np.flatnonzero(mine if only is None else mine & only)
-        member[:] = False
-        member[images] = True
-        in_a = np.flatnonzero(member[a.image])
-        ia, ib = _ratio_matches(a.descriptors[in_a], b.descriptors[in_b], ratio)
-        found_a.append(in_a[ia])
-        found_b.append(in_b[ib])
-    return np.concatenate(found_a), np.concatenate(found_b)
-
-
-def _merged(
-    b: SweepFeatures, parts: list[tuple[np.ndarray, np.ndarray]]
-) -> tuple[np.ndarray, np.ndarray]:
-    """The matches of stages (of disjoint keypoints of ``b``) in the order one stage
-    of :func:`_matches` gives them: by ``b``'s image, then by keypoint."""
-    ia = np.concatenate([p[0] for p in parts])
-    ib = np.concatenate([p[1] for p in parts])
-    order = np.lexsort((ib, b.image[ib])) if b.image is not None else np.argsort(ib)
-    return ia[order], ib[order]
-
-
-def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Row-wise ``u x v`` of two ``(M, 3)`` arrays: ``np.cross``'s arithmetic without
-    its axis handling, which cost more than the products on a few hundred rows."""
-    u0, u1, u2 = u[:, 0], u[:, 1], u[:, 2]
-    v0, v1, v2 = v[:, 0], v[:, 1], v[:, 2]
-    out = np.empty((len(u), 3), dtype=np.result_type(u, v))
-    out[:, 0] = u1 * v2 - u2 * v1
-    out[:, 1] = u2 * v0 - u0 * v2
-    out[:, 2] = u0 * v1 - u1 * v0
-    return out
-
-
-def _turned(bearings: np.ndarray, angle_rad: float) -> np.ndarray:
-    c, s = math.cos(angle_rad), math.sin(angle_rad)
-    x, y = bearings[:, 0], bearings[:, 1]
-    return np.stack([c * x - s * y, s * x + c * y, bearings[:, 2]], axis=1)
-
-
-def _residuals(
-    a: np.ndarray, b: np.ndarray, rotation_rad: float, direction_rad: float
-) -> np.ndarray:
-    """``a . (t x R b)`` for the unit horizontal ``t`` at ``direction_rad``."""
-    normal = _cross(_turned(b, rotation_rad), a)  # t . (Rb x a) = a . (t x Rb)
-    return math.cos(direction_rad) * normal[:, 0] + math.sin(direction_rad) * normal[:, 1]
-
-
-def _direction_counts(
-    a: np.ndarray,
-    b: np.ndarray,
-    rotation_rad: float,
-    cos_d: np.ndarray,
-    sin_d: np.ndarray,
-    tolerance: float,
-) -> np.ndarray:
-    """For each direction of motion (``cos_d``, ``sin_d``: shape ``(D, 1)``), how many
-    matched bearings fit the planar motion with ``rotation_rad`` within ``tolerance``."""
-    normal = _cross(_turned(b, rotation_rad), a)
-    counts: np.ndarray = (np.abs(cos_d * normal[:, 0] + sin_d * normal[:, 1]) < tolerance).sum(
-        axis=1
-    )
-    return counts
-
-
-def _grid_counts(
-    a: np.ndarray, b: np.ndarray, rotations: np.ndarray, direction_steps: int, tolerance: float
-) -> np.ndarray:
-    """For every rotation and each of ``direction_steps`` directions of motion over
-    [0, pi), how many matched bearings fit the planar motion within ``tolerance``:
-    ``(R, D)``, what :func:`_direction_counts` gives one rotation at a time.
-
-    Not by trying every direction: for one pair at one rotation the residual is
-    ``rho cos(d - psi)``, under the tolerance on one interval of directions (mod
-    pi), so each pair adds one interval to a difference array and a cumulative sum
-    counts them all. O(R M + R D) instead of O(R M D).
-    """
-    c, s = np.cos(rotations)[:, None], np.sin(rotations)[:, None]
-    bx, by, bz = b[:, 0], b[:, 1], b[:, 2]
-    ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
-    n_x = (s * bx + c * by) * az - bz * ay
-    n_y = bz * ax - (c * bx - s * by) * az
-    rho = np.hypot(n_x, n_y)
-    psi = np.arctan2(n_y, n_x)
-    steps = direction_steps
-    h = math.pi / steps
-    everywhere = rho < tolerance
-    with np.errstate(divide="ignore", invalid="ignore"):
-        delta = np.arccos(np.where(everywhere, 1.0, tolerance / np.where(everywhere, 1.0, rho)))
-    # |cos(d - psi)| < tol / rho  <=>  (d - psi) mod pi in (delta, pi - delta).
-    start = np.mod(psi + delta, math.pi)
-    length = math.pi - 2.0 * delta
-    first = np.floor(start / h).astype(np.int64) + 1
-    last = np.ceil((start + length) / h).astype(np.int64) - 1
-    ok = (last >= first) & ~everywhere
-    rows = np.broadcast_to(np.arange(len(rotations))[:, None], first.shape)
-    width = 2 * steps + 2
-    size = len(rotations) * width
-    diff = np.bincount((rows * width + first)[ok], minlength=size) - np.bincount(
-        (rows * width + last + 1)[ok], minlength=size
-    )
-    extended = np.cumsum(diff.reshape(len(rotations), width), axis=1)
-    counts: np.ndarray = extended[:, :steps] + extended[:, steps : 2 * steps]
-    counts += everywhere.sum(axis=1)[:, None]
-    return counts
-
-
-def _azimuth_peak(a: np.ndarray, b: np.ndarray) -> float:
-    """The most common azimuth difference of matched bearings: the rotation, give or
-    take the parallax (a histogram of 5-degree bins, smoothed over three)."""
-    diff = np.arctan2(a[:, 1], a[:, 0]) - np.arctan2(b[:, 1], b[:, 0])
-    bins = 72
-    index = np.floor(np.mod(diff, 2.0 * math.pi) / (2.0 * math.pi) * bins).astype(np.int64)
-    counts = np.bincount(index, minlength=bins)
-    smooth = counts + np.roll(counts, 1) + np.roll(counts, -1)
-    return wrap_angle_rad((int(np.argmax(smooth)) + 0.5) * 2.0 * math.pi / bins)
-
-
 def _coarse(
     query: SweepFeatures,
     known: SweepFeatures,
@@ -603,111 +423,3 @@ def fit_two_view(
     peak_direction = float(directions[int(np.argmax(peak_counts[0]))])
     pixel_rad = max(query.pixel_rad, known.pixel_rad)
     return _tilted(a, b, fit, [(rotation, direction), (peak, peak_direction)], config, pixel_rad)
-
-
-def _tilt_matrix(params: np.ndarray) -> np.ndarray:
-    """The rotation of :func:`_tilted`'s ``params``: heading change after relative
-    roll (about x) and pitch (about y)."""
-    rotation, roll, pitch = params[:3]
-    cz, sz = math.cos(rotation), math.sin(rotation)
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    turn = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
-    about_x = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
-    about_y = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
-    matrix: np.ndarray = turn @ about_x @ about_y
-    return matrix
-
-
-def _tilted_residuals(a: np.ndarray, b: np.ndarray, params: np.ndarray) -> np.ndarray:
-    """``a . (t x R b)`` for the 3D rotation and the unit ``t`` (azimuth, elevation)
-    of ``params`` = (rotation, roll, pitch, azimuth, elevation)."""
-    azimuth, elevation = params[3], params[4]
-    t = np.array(
-        [
-            math.cos(elevation) * math.cos(azimuth),
-            math.cos(elevation) * math.sin(azimuth),
-            math.sin(elevation),
-        ]
-    )
-    normal: np.ndarray = _cross(b @ _tilt_matrix(params).T, a) @ t
-    return normal
-
-
-def _planar_residuals(a: np.ndarray, b: np.ndarray, params: np.ndarray) -> np.ndarray:
-    """:func:`_residuals` for ``params`` = (rotation, direction)."""
-    return _residuals(a, b, float(params[0]), float(params[1]))
-
-
-def _gauss_newton(
-    residuals: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray],
-    a: np.ndarray,
-    b: np.ndarray,
-    params: np.ndarray,
-    tolerance: float,
-    iterations: int,
-    needed: float,
-) -> np.ndarray | None:
-    """``iterations`` Gauss-Newton steps (forward-difference Jacobian) on the pairs
-    whose residual is within ``tolerance``, chosen again each step; ``None`` as soon
-    as fewer than ``needed`` are."""
-    step = 1e-6
-    for _ in range(iterations):
-        all_residuals = residuals(a, b, params)
-        inliers = np.abs(all_residuals) < tolerance
-        if inliers.sum() < needed:
-            return None
-        a_in, b_in, r = a[inliers], b[inliers], all_residuals[inliers]
-        jacobian = np.stack(
-            [(residuals(a_in, b_in, params + e) - r) / step for e in np.eye(len(params)) * step],
-            axis=1,
-        )
-        params = params + np.linalg.lstsq(jacobian, -r, rcond=None)[0]
-    return params
-
-
-def _refine_tilted(
-    a: np.ndarray, b: np.ndarray, start: np.ndarray, config: TwoViewConfig, pixel_rad: float
-) -> tuple[np.ndarray, int] | None:
-    """Gauss-Newton from ``start`` on the inliers of ever tighter tolerances; the
-    parameters and their inliers at the last tolerance, or ``None`` if too few."""
-    params = start
-    for tolerance_px in config.tilt_tolerances_px:
-        tolerance = tolerance_px * pixel_rad
-        iterations, needed = config.tilt_iterations, config.min_inliers
-        refined = _gauss_newton(_tilted_residuals, a, b, params, tolerance, iterations, needed)
-        if refined is None:
-            return None
-        params = refined
-    final = config.tilt_tolerances_px[-1] * pixel_rad
-    return params, int((np.abs(_tilted_residuals(a, b, params)) < final).sum())
-
-
-def _tilted(
-    a: np.ndarray,
-    b: np.ndarray,
-    fit: TwoViewFit,
-    starts: list[tuple[float, float]],
-    config: TwoViewConfig,
-    pixel_rad: float,
-) -> TwoViewFit:
-    """``fit`` with the rotation and direction of the tilted refinement from the best
-    of ``starts`` (rotation, direction); the planar fit if none converges to a
-    plausible tilt with enough more inliers."""
-    best: tuple[np.ndarray, int] | None = None
-    for rotation, direction in starts:
-        start = np.array([rotation, 0.0, 0.0, direction, 0.0])
-        got = _refine_tilted(a, b, start, config, pixel_rad)
-        if got is None or math.hypot(got[0][1], got[0][2]) > config.max_tilt_rad:
-            continue
-        if best is None or got[1] > best[1]:
-            best = got
-    if best is None or best[1] < config.tilt_min_gain * fit.inliers:
-        return fit
-    params = best[0]
-    return replace(
-        fit,
-        rotation_rad=wrap_angle_rad(float(params[0])),
-        direction_rad=float(np.mod(params[3], math.pi)),
-        tilt_rad=float(math.hypot(params[1], params[2])),
-    )

@@ -12,9 +12,10 @@ import cv2
 import numpy as np
 import pytest
 
-from pipemap.localizer import twoview
+from pipemap.localizer import keymatch, twoview
 from pipemap.localizer.fastmatch import FastMatcher
-from pipemap.localizer.twoview import TwoViewConfig, _ratio_matches, fit_two_view, sweep_features
+from pipemap.localizer.keymatch import _ratio_matches
+from pipemap.localizer.twoview import TwoViewConfig, fit_two_view, sweep_features
 from tests.conftest import PaperSet
 
 
@@ -92,13 +93,13 @@ def test_two_stages_give_the_one_stage_fit(
 def seen(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """How many keypoints of the known sweep each Hamming matching took."""
     counts: list[int] = []
-    real = twoview._ratio_matches
+    real = keymatch._ratio_matches
 
     def counting(a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
         counts.append(len(b))
         return real(a, b, ratio)
 
-    monkeypatch.setattr(twoview, "_ratio_matches", counting)
+    monkeypatch.setattr(keymatch, "_ratio_matches", counting)
     return counts
 
 
