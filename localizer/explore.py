@@ -39,7 +39,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from pipemap.localizer.localizer import Decision
+from pipemap.localizer.decision import Decision
 from pipemap.localizer.routes import RouteStep, describe_step, nearest_route, plan_route
 from pipemap.localizer.topomap import TopoMap
 

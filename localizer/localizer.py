@@ -25,13 +25,20 @@ leaves by.
 
 from __future__ import annotations
 
-import enum
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from typing import Protocol
 
 from pipemap.errors import LocalizerError
+from pipemap.localizer.decision import (
+    Decision,
+    ProbeKind,
+    ProbeOutcome,
+    ProbeRequest,
+    ProbeSource,
+    best_candidate,
+    probe_plan,
+)
 from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
 from pipemap.localizer.illumination import IlluminationConfig, normalised
 from pipemap.localizer.imageset import ImageSet
@@ -69,47 +76,6 @@ DEFAULT_THRESHOLD = PAPER_THRESHOLD
 #: it within this: half the smallest angle between two pipes of a junction (60
 #: degrees), so never two exits.
 _DEPARTURE_TOLERANCE_RAD = math.pi / 6.0
-
-
-class ProbeKind(enum.Enum):
-    """The paper's active-vision moves, in the order they are tried."""
-
-    ROTATE = "rotate"
-    FORWARD = "forward"
-    BACK = "back"
-    LEFT = "left"
-    RIGHT = "right"
-
-
-@dataclass(frozen=True)
-class ProbeRequest:
-    """One active-vision move, relative to the pose of the original sweep.
-
-    ``yaw_rad`` turns the robot in place (positive counter-clockwise seen from
-    above); ``forward_m`` and ``left_m`` move it in its own frame.
-    """
-
-    kind: ProbeKind
-    yaw_rad: float = 0.0
-    forward_m: float = 0.0
-    left_m: float = 0.0
-
-
-class ProbeSource(Protocol):
-    """Supplies the image set seen after a probe move, or ``None`` if it cannot."""
-
-    def probe(self, request: ProbeRequest) -> ImageSet | None:
-        """Perform (or look up) ``request`` and return the sweep taken after it."""
-        ...
-
-
-@dataclass(frozen=True)
-class ProbeOutcome:
-    """What one probe gave: its best similarity, or ``None`` if it was not supplied."""
-
-    request: ProbeRequest
-    similarity: float | None
-    improved: bool
 
 
 @dataclass(frozen=True)
@@ -197,92 +163,6 @@ class LocalizerConfig:
 #: the threshold decides, the rotation is the NCC peak shift's, and exits are not
 #: compared.
 PAPER = LocalizerConfig(distinct_consecutive=False, two_view=False, verify=False, port_check=False)
-
-
-@dataclass(frozen=True)
-class Decision:
-    """The localizer's answer for one junction visit.
-
-    ``node`` is the map node of the visit; ``known`` says whether it was recognised.
-    ``candidate`` is the best-matching known node (``None`` on the first visit) and
-    ``match`` its match, from the probe sweep if a probe improved it. ``similarity``
-    is that match's similarity (0.0 with no candidate), ``margin`` the best minus
-    the second-best similarity among the refined candidates (``None`` with fewer
-    than two).
-    ``missing_probes`` counts requested probes the caller could not supply.
-    ``two_view`` is the two-view fit with the recognised junction (known visits
-    only, with ``LocalizerConfig.two_view``; ``None`` if too few keypoints fit).
-
-    With the visit's exits given: ``exits_rad`` are they, ``exit_ports`` the port of
-    the node that each is (``None`` without exits), ``arrival_port`` the port the
-    robot came in by (the exit behind it; ``None`` on a traversal's first visit),
-    ``port_residual_rad`` the largest misfit of a known visit's exits with its
-    ports, and ``rejected`` the candidates the images matched but whose ports did
-    not, each with the reason.
-    """
-
-    node: int
-    known: bool
-    candidate: int | None
-    similarity: float
-    margin: float | None
-    match: SetMatch | None
-    probes: tuple[ProbeOutcome, ...] = ()
-    two_view: TwoViewFit | None = None
-    exits_rad: tuple[float, ...] | None = None
-    exit_ports: tuple[int, ...] | None = None
-    arrival_port: int | None = None
-    port_residual_rad: float | None = None
-    rejected: tuple[tuple[int, str], ...] = ()
-
-    @property
-    def rotation_rad(self) -> float | None:
-        """The best rotation estimate from this visit's heading to the candidate's:
-        the two-view one if there is one, else the paper's (``None`` without a match)."""
-        if self.two_view is not None:
-            return self.two_view.rotation_rad
-        return None if self.match is None else self.match.rotation_rad
-
-    @property
-    def missing_probes(self) -> int:
-        """Number of probes requested but not supplied."""
-        return sum(1 for p in self.probes if p.similarity is None)
-
-
-def best_candidate(
-    matches: list[SetMatch], exclude: int | None = None
-) -> tuple[int | None, float, float | None]:
-    """Algorithm 1's choice: the best candidate, its similarity, the margin to the second.
-
-    Only refined matches compete when there are any: a screening score is biased
-    (it ranks, it does not measure) and must not decide. Ties go to the earliest
-    known junction. The visit is known when the similarity reaches the threshold.
-    The junction ``exclude`` (if any) never competes.
-    """
-    allowed = [i for i in range(len(matches)) if i != exclude]
-    pool = [i for i in allowed if matches[i].refined] or allowed
-    if not pool:
-        return None, 0.0, None
-    best = max(pool, key=lambda i: (matches[i].similarity, -i))
-    margin = None
-    if len(pool) > 1:
-        margin = matches[best].similarity - max(matches[i].similarity for i in pool if i != best)
-    return best, matches[best].similarity, margin
-
-
-def probe_plan(estimated_rotation_rad: float, distance_m: float) -> tuple[ProbeRequest, ...]:
-    """The paper's probe order: rotate by the estimated relative angle, then move.
-
-    The rotation turns the robot so that its sweep lines up with the candidate's
-    (the estimate is the candidate's sweep relative to this one).
-    """
-    return (
-        ProbeRequest(ProbeKind.ROTATE, yaw_rad=estimated_rotation_rad),
-        ProbeRequest(ProbeKind.FORWARD, forward_m=distance_m),
-        ProbeRequest(ProbeKind.BACK, forward_m=-distance_m),
-        ProbeRequest(ProbeKind.LEFT, left_m=distance_m),
-        ProbeRequest(ProbeKind.RIGHT, left_m=-distance_m),
-    )
 
 
 class Localizer:

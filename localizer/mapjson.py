@@ -15,7 +15,7 @@ import json
 from collections.abc import Sequence
 from typing import Any
 
-from pipemap.localizer.localizer import Decision
+from pipemap.localizer.decision import Decision
 from pipemap.localizer.topomap import MapVisit, TopoMap
 
 __all__ = ["FLOAT_DECIMALS", "decision_record", "dumps_document", "map_document"]

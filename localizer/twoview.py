@@ -343,6 +343,37 @@ def _coarse(
     return counts, rotations, centres
 
 
+def _staged_matches(
+    query: SweepFeatures,
+    known: SweepFeatures,
+    ratio: float,
+    overlap: list[np.ndarray] | None,
+    guess_rad: float | None,
+    config: TwoViewConfig,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The matches of :func:`_matches`, found in ``config.gate_every`` stages of the
+    known sweep's keypoints; ``None`` as soon as the matches so far fall short of a
+    stage's gate (see :attr:`TwoViewConfig.gate_every`)."""
+    stages = max(1, config.gate_every)
+    gate = config.gate_share * config.min_inliers / stages
+    if stages == 1 or int(gate) < 2:
+        return _matches(query, known, ratio, overlap)
+    part = np.arange(len(known)) % stages
+    found: list[tuple[np.ndarray, np.ndarray]] = []
+    count = 0
+    for stage in range(stages):
+        found.append(_matches(query, known, ratio, overlap, part == stage))
+        needed = int(gate * (stage + 1))
+        # More matches never lower a count: a gate the last count passes is passed.
+        if stage < stages - 1 and count < needed:
+            counts = _coarse(query, known, _merged(known, found), guess_rad, config, tolerance)[0]
+            count = int(counts.max(initial=0))
+            if count < needed:
+                return None
+    return _merged(known, found)
+
+
 def fit_two_view(
     query: SweepFeatures,
     known: SweepFeatures,
@@ -363,25 +394,10 @@ def fit_two_view(
         overlap = overlapping_images(query, known, guess_rad, config.overlap_margin_rad)
     ratio = config.ratio if overlap is None else config.overlap_ratio
     tolerance = config.inlier_px * max(query.pixel_rad, known.pixel_rad)
-    stages = max(1, config.gate_every)
-    gate = config.gate_share * config.min_inliers / stages
-    if stages > 1 and int(gate) >= 2:
-        part = np.arange(len(known)) % stages
-        found: list[tuple[np.ndarray, np.ndarray]] = []
-        best = 0
-        for stage in range(stages):
-            found.append(_matches(query, known, ratio, overlap, part == stage))
-            # More matches never lower a count: a gate the last count passes is passed.
-            if stage < stages - 1 and best < int(gate * (stage + 1)):
-                so_far = _merged(known, found)
-                best = int(
-                    _coarse(query, known, so_far, guess_rad, config, tolerance)[0].max(initial=0)
-                )
-                if best < int(gate * (stage + 1)):
-                    return None
-        ia, ib = _merged(known, found)
-    else:
-        ia, ib = _matches(query, known, ratio, overlap)
+    found = _staged_matches(query, known, ratio, overlap, guess_rad, config, tolerance)
+    if found is None:
+        return None
+    ia, ib = found
     if len(ia) < config.min_inliers:
         return None
     a, b = query.bearings[ia], known.bearings[ib]
