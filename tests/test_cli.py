@@ -532,7 +532,8 @@ def test_map_table(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
 
 
 def test_robust_preset_fills_in_its_settings_and_threshold() -> None:
-    from pipemap.cli.parser import apply_presets, build_parser, fast_config
+    from pipemap.cli.localizer_options import apply_presets, fast_config
+    from pipemap.cli.parser import build_parser
     from pipemap.localizer.presets import (
         ROBUST_HIGHPASS_FRACTION,
         ROBUST_THRESHOLD,
