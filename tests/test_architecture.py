@@ -11,7 +11,8 @@ is parsed; every import it makes (at module level or inside a function, absolute
 relative, and ``importlib.import_module`` / ``__import__`` of a literal name) is checked
 against the arrows allowed below. The localizer is held to more: only the standard library,
 numpy, scipy, OpenCV and networkx, and nothing that touches files, the wall clock or
-the logging set-up.
+the logging set-up. Every module is at most 500 lines (STYLE.md), but for the few listed
+that are being split. The checker's own tests are in ``test_architecture_checker.py``.
 """
 
 from __future__ import annotations
@@ -308,190 +309,61 @@ def test_imports_follow_the_layering(relpath: str) -> None:
     assert not problems, "imports that run the wrong way:\n" + "\n".join(problems)
 
 
-# ---------------------------------------------------------------- the checker
+# ---------------------------------------------------------------- module size
+
+#: STYLE.md: "Modules of 50 to 500 lines". The upper bound holds for every module of
+#: the packages.
+MAX_MODULE_LINES = 500
+
+#: Modules still over the bound, each being split by a change under way (issue 21).
+#: Take a file out when its split lands: a test fails while a listed file fits, so the
+#: list always shows what is left.
+OVERSIZED_FOR_NOW = frozenset(
+    {
+        "localizer/fastmatch.py",  # the fast matcher's stages
+        "localizer/twoview.py",  # the two-view model and its check
+        "localizer/localizer.py",  # the localizer and its decisions
+        "sim/controller.py",  # the robot's controller
+        "sim/network.py",  # 501 lines; in the hands of the stuck-robot change
+    }
+)
 
 
-BAD_SOURCES = [
-    pytest.param("localizer/x.py", "import pybullet\n", "'pybullet'", id="localizer-pybullet"),
-    pytest.param(
-        "localizer/x.py",
-        "from mcap.reader import make_reader\n",
-        "'mcap.reader",
-        id="localizer-mcap",
-    ),
-    pytest.param("localizer/x.py", "import rerun as rr\n", "'rerun'", id="localizer-rerun"),
-    pytest.param(
-        "localizer/x.py",
-        "def load():\n    from pipemap.replay import reader\n",
-        "'pipemap.replay.reader'",
-        id="localizer-replay-inside-function",
-    ),
-    pytest.param(
-        "localizer/x.py",
-        "from pipemap.cli import main\n",
-        "'pipemap.cli.main'",
-        id="localizer-cli",
-    ),
-    pytest.param("localizer/x.py", "import pipemap\n", "'pipemap'", id="localizer-pipemap"),
-    pytest.param(
-        "localizer/x.py",
-        "from pipemap import __version__\n",
-        "'pipemap.__version__'",
-        id="localizer-pipemap-attr",
-    ),
-    pytest.param(
-        "localizer/x.py", "from pathlib import Path\n", "'pathlib.Path'", id="localizer-pathlib"
-    ),
-    pytest.param("localizer/x.py", "import os.path\n", "'os.path'", id="localizer-os"),
-    pytest.param("localizer/x.py", "import time\n", "'time'", id="localizer-time"),
-    pytest.param(
-        "localizer/x.py",
-        "from datetime import datetime\n",
-        "'datetime.datetime'",
-        id="localizer-datetime",
-    ),
-    pytest.param(
-        "localizer/x.py",
-        "from logging import basicConfig\n",
-        "'logging.basicConfig'",
-        id="localizer-from-logging-basicconfig",
-    ),
-    pytest.param(
-        "localizer/x.py",
-        "import logging\nlogging.basicConfig(level=10)\n",
-        "logging.basicConfig",
-        id="localizer-logging-basicconfig",
-    ),
-    pytest.param(
-        "localizer/x.py",
-        "def f(p):\n    with open(p) as fh:\n        return fh\n",
-        "open()",
-        id="localizer-open",
-    ),
-    pytest.param(
-        "localizer/x.py",
-        "import cv2 as cv\nim = cv.imread('a.png')\n",
-        "cv2.imread()",
-        id="localizer-imread",
-    ),
-    pytest.param(
-        "localizer/x.py",
-        "import importlib\nm = importlib.import_module('pybullet')\n",
-        "'pybullet'",
-        id="localizer-dynamic-import",
-    ),
-    pytest.param(
-        "localizer/sub/x.py",
-        "from ....sim import world\n",
-        "beyond top level",
-        id="localizer-relative-escape",
-    ),
-    pytest.param(
-        "localizer/x.py",
-        "from ..sim import world\n",
-        "'pipemap.sim.world'",
-        id="localizer-relative-sibling-layer",
-    ),
-    pytest.param(
-        "sim/x.py",
-        "from pipemap.localizer import ImageSet\n",
-        "'pipemap.localizer.ImageSet'",
-        id="sim-localizer",
-    ),
-    pytest.param("sim/x.py", "import pipemap.recorder\n", "'pipemap.recorder'", id="sim-recorder"),
-    pytest.param(
-        "sim/x.py", "from mcap.writer import Writer\n", "'mcap.writer.Writer'", id="sim-mcap"
-    ),
-    pytest.param("sim/x.py", "from localizer import ImageSet\n", "live under", id="old-name"),
-    pytest.param("pipemap/cli/x.py", "import sim.world\n", "live under", id="cli-old-name"),
-    pytest.param(
-        "recorder/x.py",
-        "from pipemap.replay.score import score\n",
-        "'pipemap.replay.score.score'",
-        id="recorder-replay",
-    ),
-    pytest.param(
-        "recorder/x.py",
-        "from pipemap.imagesets import load_image_set\n",
-        "'pipemap.imagesets.load_image_set'",
-        id="recorder-imagesets",
-    ),
-    pytest.param(
-        "replay/x.py", "import pipemap.sim.world\n", "'pipemap.sim.world'", id="replay-sim"
-    ),
-    pytest.param(
-        "replay/x.py", "from pipemap.batch import run_batch\n", "'pipemap.batch", id="replay-batch"
-    ),
-    pytest.param(
-        "recorder/x.py", "import pipemap.batch.spec\n", "'pipemap.batch.spec'", id="recorder-batch"
-    ),
-    pytest.param(
-        "pipemap/batch/x.py",
-        "from pipemap.cli.parser import build_parser\n",
-        "'pipemap.cli.parser.build_parser'",
-        id="batch-cli",
-    ),
-    pytest.param("pipemap/errors.py", "import numpy\n", "'numpy'", id="errors-numpy"),
-    pytest.param("pipemap/errors.py", "from . import cli\n", "'pipemap.cli'", id="errors-cli"),
-    pytest.param(
-        "pipemap/__init__.py",
-        "from pipemap.cli import main\n",
-        "'pipemap.cli.main'",
-        id="pipemap-init-cli",
-    ),
-]
+def module_lines(path: Path) -> int:
+    """How many lines the file at ``path`` has."""
+    return len(path.read_text(encoding="utf-8").splitlines())
 
 
-@pytest.mark.parametrize(("relpath", "source", "named"), BAD_SOURCES)
-def test_checker_catches_forbidden_import(relpath: str, source: str, named: str) -> None:
-    problems = violations(source, relpath)
-    assert len(problems) == 1, problems
-    assert problems[0].startswith(f"{relpath}:"), problems[0]  # names the file and line
-    assert named in problems[0], problems[0]  # names the import
+def oversized(root: Path, relpaths: list[str], allowed: frozenset[str] = frozenset()) -> list[str]:
+    """Each of ``relpaths`` (below ``root``) longer than :data:`MAX_MODULE_LINES` and
+    not in ``allowed``, as ``"file: N lines"``."""
+    lengths = {relpath: module_lines(root / relpath) for relpath in relpaths}
+    return [
+        f"{relpath}: {n} lines"
+        for relpath, n in lengths.items()
+        if n > MAX_MODULE_LINES and relpath not in allowed
+    ]
 
 
-GOOD_SOURCES = [
-    pytest.param(
-        "localizer/x.py",
-        "from __future__ import annotations\nimport math\nimport numpy as np\n"
-        "from scipy.signal import fftconvolve\nimport cv2\nimport networkx as nx\n"
-        "from pipemap.errors import LocalizerError\nfrom pipemap import errors\n"
-        "from ..errors import PipemapError\n"
-        "import logging\nlog = logging.getLogger(__name__)\n"
-        "from .similarity import SetMatch\nfrom pipemap.localizer.imageset import ImageSet\n"
-        "small = cv2.resize(np.zeros((4, 4)), (2, 2))\n",
-        id="localizer",
-    ),
-    pytest.param(
-        "recorder/x.py",
-        "import mcap\nfrom pipemap.sim import world\nfrom pipemap.localizer import Localizer\n"
-        "from pipemap.errors import PipemapError\n",
-        id="recorder",
-    ),
-    pytest.param(
-        "replay/x.py",
-        "from pipemap.recorder.topics import TOPICS\nimport pipemap.localizer\n"
-        "def f():\n    import rerun\n",
-        id="replay",
-    ),
-    pytest.param(
-        "pipemap/cli/app.py",
-        "from pipemap.replay import score\nfrom pipemap.recorder import Recorder\n"
-        "import pipemap.sim\nfrom . import parser\n",
-        id="cli",
-    ),
-    pytest.param(
-        "pipemap/batch/x.py",
-        "from pipemap import __version__\nfrom pipemap.recorder import record_run\n"
-        "from pipemap.replay import score\nfrom pipemap.sim.network import build_network\n"
-        "from pipemap.localizer import PAPER\nfrom pipemap.errors import InputError\n"
-        "from . import spec\nimport ray\n",
-        id="batch",
-    ),
-    pytest.param("pipemap/errors.py", "from __future__ import annotations\n", id="errors"),
-]
+def test_modules_are_at_most_500_lines() -> None:
+    problems = oversized(ROOT, source_files(), OVERSIZED_FOR_NOW)
+    assert not problems, (
+        f"modules over {MAX_MODULE_LINES} lines (split them by idea):\n" + "\n".join(problems)
+    )
 
 
-@pytest.mark.parametrize(("relpath", "source"), GOOD_SOURCES)
-def test_checker_allows_the_right_arrows(relpath: str, source: str) -> None:
-    assert violations(source, relpath) == []
+def test_the_list_of_oversized_modules_shows_what_is_left() -> None:
+    files = source_files()
+    for relpath in sorted(OVERSIZED_FOR_NOW):
+        assert relpath in files, f"{relpath} is gone: take it out of OVERSIZED_FOR_NOW"
+        n = module_lines(ROOT / relpath)
+        assert n > MAX_MODULE_LINES, f"{relpath} is {n} lines now: take it out of OVERSIZED_FOR_NOW"
+
+
+def test_the_size_check_catches_a_long_module(tmp_path: Path) -> None:
+    (tmp_path / "sim").mkdir()
+    (tmp_path / "sim" / "long.py").write_text("x = 1\n" * (MAX_MODULE_LINES + 1))
+    (tmp_path / "sim" / "fits.py").write_text("x = 1\n" * MAX_MODULE_LINES)
+    files = ["sim/long.py", "sim/fits.py"]
+    assert oversized(tmp_path, files) == [f"sim/long.py: {MAX_MODULE_LINES + 1} lines"]
+    assert oversized(tmp_path, files, frozenset({"sim/long.py"})) == []

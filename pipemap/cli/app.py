@@ -17,7 +17,8 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TextIO
 
-from pipemap.cli.parser import apply_presets, build_parser
+from pipemap.cli.localizer_options import apply_presets
+from pipemap.cli.parser import build_parser
 from pipemap.errors import PipemapError, WriteError
 
 __all__ = ["BAD_INPUT", "INTERRUPTED", "WRITE_FAILED", "main"]

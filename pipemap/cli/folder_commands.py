@@ -12,7 +12,7 @@ import sys
 from typing import Any, TextIO
 
 from pipemap import api
-from pipemap.cli.parser import (
+from pipemap.cli.localizer_options import (
     fast_config,
     illumination_setting,
     port_check,

@@ -14,13 +14,13 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
-from pipemap.cli.outputs import output_file, output_folder, write_text
-from pipemap.cli.parser import (
+from pipemap.cli.localizer_options import (
     fast_config,
     illumination_setting,
     port_check,
     two_view_settings,
 )
+from pipemap.cli.outputs import output_file, output_folder, write_text
 from pipemap.errors import WriteError
 
 __all__ = [

@@ -13,7 +13,8 @@ from pipemap.batch import GRID_KEYS, RULES, SpecError, load_spec, parse_spec
 from pipemap.batch.experiment import ExperimentSettings, paper_spec, paper_spec_text
 from pipemap.batch.spec import RunPoint
 from pipemap.cli.app import main
-from pipemap.cli.parser import apply_presets, build_parser
+from pipemap.cli.localizer_options import apply_presets
+from pipemap.cli.parser import build_parser
 from pipemap.cli.replay_commands import localizer_config
 
 REPO = Path(__file__).resolve().parents[2]

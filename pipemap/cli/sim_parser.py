@@ -1,0 +1,123 @@
+"""The arguments of the commands that run the simulator: ``sim`` (run by
+:mod:`pipemap.cli.sim_command`) and ``record`` (:mod:`pipemap.cli.log_commands`)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+from pipemap.cli import arguments
+from pipemap.localizer.presets import PAPER_THRESHOLD
+
+if TYPE_CHECKING:
+    from pipemap.cli.arguments import Subparsers
+
+__all__ = ["add_record", "add_sim"]
+
+
+def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
+    """What to simulate: network, start, seed, condition, camera; shared by sim and record."""
+    p.add_argument("--network", required=True, help="paper, grid:RxC, random:N or tree:N")
+    p.add_argument("--start", default=None, help="start node label (default: the entry)")
+    p.add_argument("--seed", type=arguments.seed, default=0, help="seed of every random draw (0)")
+    p.add_argument(
+        "--condition",
+        choices=["perfect", "noise", "active", "entrance", "autonomous"],
+        default=condition,
+        help=f"placement at junctions, as in the paper (default {condition})",
+    )
+    p.add_argument(
+        "--resolution", type=arguments.resolution, default=400, help="image size in px (400)"
+    )
+    p.add_argument(
+        "--lighting",
+        choices=["lamp", "even"],
+        default="lamp",
+        help="lamp (default): a dark pipe lit only by the robot's lamp at the camera; "
+        "even: every surface evenly lit, as in the paper's simulation",
+    )
+    p.add_argument(
+        "--tilt-deg",
+        type=arguments.tilt_deg,
+        default=0.0,
+        metavar="DEG",
+        help="the robot off level: roll and pitch drawn at each junction within +-DEG "
+        "(seeded; placement conditions only; default 0, level)",
+    )
+    p.add_argument(
+        "--images",
+        type=arguments.images,
+        default=6,
+        help="images per sweep, 360/N degrees apart (6)",
+    )
+    p.add_argument(
+        "--explore",
+        choices=["map", "right-hand"],
+        default="map",
+        help="autonomous condition: how the robot chooses exits; map (default): every "
+        "untraversed pipe of its own map, Trémaux-style, then back to the start; "
+        "right-hand: the paper's right-most-branch rule",
+    )
+    p.add_argument(
+        "--align-sweeps",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="start each sweep at the multiple of 360/N degrees nearest the robot's heading "
+        "estimate (default); --no-align-sweeps starts straight ahead, as in the paper",
+    )
+
+
+def add_sim(sub: Subparsers) -> None:
+    """``pipemap sim``: an exploration saved as image-set folders."""
+    p = sub.add_parser(
+        "sim",
+        help="run a simulated exploration and save its sweeps",
+        description="Explore a pipe network by the right-most-branch rule and save every "
+        "junction sweep as DIR/0001, DIR/0002, ... in the paper's folder layout.",
+    )
+    _add_run_options(p, "perfect")
+    arguments.add_output(
+        p, "--save-sweeps", required=True, metavar="DIR", helptext="new or empty folder"
+    )
+    arguments.add_force(p, "replace the sweep folders (0001, 0002, ...) of an earlier run in DIR")
+
+
+def add_record(sub: Subparsers) -> None:
+    """``pipemap record``: an exploration with the localizer online, written as a log."""
+    p = sub.add_parser(
+        "record",
+        help="run a simulated exploration and write its log (MCAP)",
+        description="Run an episode with the localizer online and write every sensor stream, "
+        "camera sweep, ground truth and online decision to one MCAP log.",
+    )
+    _add_run_options(p, "autonomous")
+    p.add_argument(
+        "--threshold",
+        type=arguments.threshold,
+        default=PAPER_THRESHOLD,
+        help=f"the online localizer's similarity threshold (default {PAPER_THRESHOLD}); "
+        "by default the two-view check decides known or new, and the threshold only asks "
+        "for probes",
+    )
+    arguments.add_output(
+        p, "-o", "--output", required=True, metavar="RUN.mcap", helptext="log file"
+    )
+    arguments.add_force(p, "overwrite an existing log")
+    p.add_argument(
+        "--view",
+        action="store_true",
+        help="stream the run live to a rerun viewer (spawned, or the one of --connect)",
+    )
+    p.add_argument(
+        "--connect",
+        metavar="URL",
+        default=None,
+        help="with --view: stream to the running rerun viewer or server at this gRPC URL "
+        "(e.g. rerun+http://127.0.0.1:9876/proxy) instead of spawning one",
+    )
+    p.add_argument(
+        "--save",
+        action="store_true",
+        help="with --view: write the view as RUN.rrd beside the log after the run, "
+        "instead of streaming it",
+    )

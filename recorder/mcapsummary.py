@@ -1,0 +1,148 @@
+"""The frame of an MCAP file around its data section: the header it opens with, and the
+summary, footer and closing magic it ends with. A damaged summary loses nothing (every
+message is in the data section), but :func:`read_summary` says what is wrong with it;
+a summary that reads gives the walk of :mod:`recorder.mcapfile` the chunks to resume at
+after damage, and the schemas and channels a lost chunk held."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass
+
+from mcap.opcode import Opcode
+
+from pipemap.recorder.mcaprecords import (
+    FOOTER,
+    FOOTER_RECORD,
+    HEAD,
+    MAGIC,
+    U64,
+    BadRecord,
+    Body,
+    McapHeaderError,
+    add_definition,
+    describe,
+)
+
+__all__ = ["ChunkIndex", "Summary", "missing_magic", "read_header", "read_summary"]
+
+_CHUNK_INDEX = struct.Struct("<QQQQ")
+
+
+@dataclass
+class ChunkIndex:
+    """Where the summary says a chunk is, the time range it holds and its message indexes."""
+
+    #: The chunk's number among the file's chunks (1-based).
+    number: int
+    offset: int
+    start_ns: int
+    end_ns: int
+    #: channel id -> file offset of the chunk's message index record for it
+    message_index_offsets: dict[int, int]
+
+
+@dataclass
+class Summary:
+    """What a file's summary section holds."""
+
+    limit: int  # where the data section ends (the summary's start, or the footer's)
+    chunks: list[ChunkIndex]
+    schemas: dict[int, tuple[str, str]]
+    channels: dict[int, tuple[str, int, str]]
+    metadata_names: list[str]
+
+
+def read_header(data: bytes) -> tuple[int, str, str]:
+    """Where the data section starts, and the header's profile and library.
+
+    Raises :class:`McapHeaderError` when the file is not MCAP or its header cannot
+    be read."""
+    if len(data) == 0:
+        raise McapHeaderError("empty file, not an MCAP log")
+    if len(data) < len(MAGIC) and MAGIC.startswith(data):
+        raise McapHeaderError("MCAP file cut short inside its magic, before its header")
+    if not data.startswith(MAGIC):
+        raise McapHeaderError("not an MCAP file")
+    position = len(MAGIC)
+    if len(data) < position + HEAD.size:
+        raise McapHeaderError("MCAP file cut short before its header")
+    opcode, length = HEAD.unpack_from(data, position)
+    if opcode != Opcode.HEADER:
+        raise McapHeaderError(f"MCAP file whose first record is not a header (opcode {opcode})")
+    end = position + HEAD.size + length
+    if end > len(data):
+        raise McapHeaderError(
+            f"MCAP file cut short inside its header (header of {length} bytes, file of {len(data)})"
+        )
+    body = Body(data, position + HEAD.size, end)
+    try:
+        profile = body.string()
+        library = body.string()
+    except BadRecord as exc:
+        raise McapHeaderError(f"MCAP header is malformed: {exc}") from None
+    return int(end), profile, library
+
+
+def read_summary(data: bytes, data_start: int) -> tuple[Summary | None, str]:
+    """The footer and the summary, and what is wrong with them ("" if nothing, or if
+    the file does not end in the magic: then it is cut short, and has no summary)."""
+    if len(data) < data_start + FOOTER_RECORD + len(MAGIC) or not data.endswith(MAGIC):
+        return None, ""
+    at = len(data) - len(MAGIC) - FOOTER_RECORD
+    opcode, length = HEAD.unpack_from(data, at)
+    if opcode != Opcode.FOOTER or length != FOOTER.size:
+        return None, "no footer before the closing magic"
+    start, _offsets, crc = FOOTER.unpack_from(data, at + HEAD.size)
+    if start != 0 and not data_start <= start <= at:
+        return None, f"the footer points its summary outside the file (byte {start})"
+    if crc != 0 and zlib.crc32(data[start or at : at + HEAD.size + 16]) != crc:
+        return None, "summary CRC mismatch"
+    summary = Summary(start or at, [], {}, {}, [])
+    position = start if start else at
+    try:
+        while position < at:
+            opcode, length = HEAD.unpack_from(data, position)
+            end = position + HEAD.size + length
+            if end > at:
+                raise BadRecord("a summary record runs into the footer")
+            _add_summary_record(summary, opcode, Body(data, position + HEAD.size, end))
+            position = end
+    except (BadRecord, struct.error) as exc:
+        return None, f"summary unreadable ({describe(exc)})"
+    return summary, ""
+
+
+def _add_summary_record(summary: Summary, opcode: int, body: Body) -> None:
+    if add_definition(opcode, body, summary.schemas, summary.channels):
+        return
+    if opcode == Opcode.CHUNK_INDEX:
+        begin, finish, offset, _length = body.unpack(_CHUNK_INDEX)
+        offsets: dict[int, int] = {}
+        entries = body.u32()
+        entries_end = body.pos + entries
+        while body.pos < entries_end:
+            channel_id = body.u16()
+            offsets[channel_id] = body.u64()
+        number = len(summary.chunks) + 1
+        summary.chunks.append(ChunkIndex(number, offset, begin, finish, offsets))
+    elif opcode == Opcode.METADATA_INDEX:
+        body.u64()
+        body.u64()
+        summary.metadata_names.append(body.string())
+
+
+def missing_magic(data: bytes) -> int:
+    """How many bytes of the closing magic are missing, if the file ends inside it
+    right after a footer record; else 0."""
+    for missing in range(1, len(MAGIC) + 1):
+        kept = len(MAGIC) - missing
+        at = len(data) - kept - FOOTER_RECORD
+        if at < 0:
+            break
+        if data[len(data) - kept :] == MAGIC[:kept] and data[at] == Opcode.FOOTER:
+            (length,) = U64.unpack_from(data, at + 1)
+            if length == FOOTER.size:
+                return missing
+    return 0
