@@ -60,7 +60,14 @@ from pipemap.sim.stream import (
 )
 from pipemap.sim.world import CameraSpec, World
 
-__all__ = ["Progress", "RecordResult", "RecordSettings", "RunObserver", "record_run"]
+__all__ = [
+    "Progress",
+    "RecordResult",
+    "RecordSettings",
+    "RunObserver",
+    "covers",
+    "record_run",
+]
 
 _NS_PER_S = 1_000_000_000
 #: Placement conditions: the camera motor's step, a probe move, the cruising speed.
@@ -380,11 +387,12 @@ def _pipes_driven(network: Network, path: list[str]) -> int:
     return len({frozenset(ab) for ab in zip(path, path[1:], strict=False)} & pipes)
 
 
-def _covered(
+def covers(
     network: Network, deposits: tuple[Obstacle, ...], nodes: set[str], path: list[str]
 ) -> bool:
-    """Every node and pipe swept and driven; with blocking deposits, every node
-    reachable without driving a blocked pipe, and every other pipe among them."""
+    """Whether a run whose sweeps were at true ``nodes`` along ``path`` covered the
+    network: every node and pipe swept and driven; with blocking deposits, every
+    node reachable without driving a blocked pipe, and every other pipe among them."""
     blocked = {o.pipe for o in deposits if o.kind is ObstacleKind.BLOCKING}
     if not blocked:
         return nodes - {"?"} == set(network.labels) and _pipes_driven(network, path) == len(
@@ -451,7 +459,7 @@ def record_run(
                 distance, duration = result.distance_m, result.duration_ns
                 # The robot believes it is done; the truth says whether it covered all
                 # it could reach (every pipe but the blocked ones).
-                covered = _covered(network, deposits, sink.true_nodes, sink.true_path)
+                covered = covers(network, deposits, sink.true_nodes, sink.true_path)
                 ok = result.status is RunStatus.FINISHED and covered
             else:
                 placed = _PlacedRun(world, settings, sink)

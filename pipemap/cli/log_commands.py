@@ -113,7 +113,9 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         explore=Explore(args.explore),
         lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
         tilt_rad=math.radians(args.tilt_deg),
+        obstacles=args.obstacles,
     )
+    settings.deposits(network)  # too many for the network: an error before any work
     live = None
     if args.view and not args.save:
         from pipemap.cli.view_command import live_view

@@ -70,6 +70,7 @@ def _degrees(text: str) -> float:
 
 _zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (1, 2]")
 _tilt_deg = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 15.0, "not in [0, 15]")
+_obstacles = _checked(int, lambda v: v >= 0, "an obstacle count must be >= 0")
 _highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
 
 
@@ -259,6 +260,14 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         metavar="DEG",
         help="the robot off level: roll and pitch drawn at each junction within +-DEG "
         "(seeded; placement conditions only; default 0, level)",
+    )
+    p.add_argument(
+        "--obstacles",
+        type=_obstacles,
+        default=0,
+        metavar="N",
+        help="autonomous condition: floor deposits in N pipes of at least 0.9 m, drawn from "
+        "the seed, each passable (on one side) or blocking (default 0: none)",
     )
     p.add_argument(
         "--images", type=_images, default=6, help="images per sweep, 360/N degrees apart (6)"
