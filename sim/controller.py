@@ -301,6 +301,7 @@ class Explorer:
         # Commanded motion with the encoders standing still, so far (a stall).
         self._stall_ns = 0
         self._halt: RunStatus | None = None  # a watchdog fired during a recovery
+        self._track: list[tuple[float, np.ndarray, float]] = []  # the last follow's
 
     # -- low level: drive and keep the estimates ------------------------------------
 
@@ -394,6 +395,7 @@ class Explorer:
         c = self.config
         self._state = "following"
         track: list[tuple[float, np.ndarray, float]] = []  # (distance, position, heading)
+        self._track = track
         while True:
             distance = self._node_distance_m()
             if distance is not None:
@@ -657,7 +659,7 @@ class Explorer:
             stall = self._xy_est.copy()
             move = stall - origin
             depth = float(np.linalg.norm(move))
-            axis = math.atan2(move[1], move[0]) if depth > 0.05 else self._yaw_est
+            axis = self._axis_heading()
             self._event(f"stall {depth:.2f} m into the pipe", warning=True)
             if recover(driver, self.recovery, stall, axis):
                 continue
@@ -677,6 +679,19 @@ class Explorer:
         self._state = "returning to junction"
         found = self._follow()
         return RunStatus.STUCK if isinstance(found, _Stall) else found
+
+    def _axis_heading(self) -> float:
+        """The pipe's axis as the follower held it: the mean heading over the last
+        0.15 m it followed (the heading now if it followed less than 5 cm). The
+        follower balances the side ranges, so its heading swings about the axis."""
+        track = self._track
+        if not track or track[-1][0] - track[0][0] < 0.05:
+            return self._yaw_est
+        recent = [h for d, _, h in track if track[-1][0] - d <= 0.15]
+        return math.atan2(
+            sum(math.sin(h) for h in recent) / len(recent),
+            sum(math.cos(h) for h in recent) / len(recent),
+        )
 
     def _choose_again(self, left: _Left) -> ExitChoice:
         """Back at the junction ``left`` from a blocked pipe: face as at the visit and
@@ -804,6 +819,10 @@ class _Driving:
             e._halt = status
             return False
         return not e._stalled()
+
+    def heading(self) -> float:
+        """The gyro's heading."""
+        return self._explorer._yaw_est
 
     def halted(self) -> bool:
         """A watchdog fired."""

@@ -17,8 +17,9 @@ the pipe is blocked (:meth:`~pipemap.sim.policy.ExitPolicy.blocked`). Every step
 a note in the robot's events. The watchdog stays the last resort: a robot that
 makes no progress for ``stuck_after_ns`` still ends the run as ``stuck``.
 
-The pipe's axis is the line from where the robot left the junction (its centre)
-to where it first stalled: the follower keeps the robot centred, so both lie on it.
+The pipe's axis is the line through where the robot first stalled along the mean
+heading the follower held just before (it balances the side ranges, so it swings
+about the axis); offsets from it are by odometry.
 """
 
 from __future__ import annotations
@@ -77,6 +78,10 @@ class Driver(Protocol):
         when it stalled (or a watchdog fired) on the way."""
         ...
 
+    def heading(self) -> float:
+        """The robot's heading estimate."""
+        ...
+
     def halted(self) -> bool:
         """A watchdog has ended the run: stop trying."""
         ...
@@ -131,8 +136,9 @@ def recover(driver: Driver, config: RecoveryConfig, stall: np.ndarray, axis: flo
             f"drive {names[k - 1]}",
             "backing off",
         )
-        driver.turn_to(axis)
-        if not driver.straight(-(along + config.back_off_m), axis):
+        # Straight back as it stands first: turning in place against the deposit
+        # would only stall again.
+        if not driver.straight(-(along + config.back_off_m), driver.heading()):
             continue
         if not _shift(driver, config, stall, axis, side):
             continue

@@ -39,6 +39,7 @@ class Corridor:
 
     def straight(self, distance_m: float, heading_rad: float) -> bool:
         self.drives += 1
+        self.yaw = heading_rad
         step = math.copysign(0.002, distance_m)
         direction = np.array([math.cos(heading_rad), math.sin(heading_rad)])
         for _ in range(int(abs(distance_m) / 0.002)):
@@ -49,6 +50,9 @@ class Corridor:
                 raise AssertionError(f"touched the wall at {nxt}")
             self.xy = nxt
         return True
+
+    def heading(self) -> float:
+        return self.yaw
 
     def halted(self) -> bool:
         return self.halt_after is not None and self.drives >= self.halt_after
