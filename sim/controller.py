@@ -301,7 +301,6 @@ class Explorer:
         # Commanded motion with the encoders standing still, so far (a stall).
         self._stall_ns = 0
         self._halt: RunStatus | None = None  # a watchdog fired during a recovery
-        self._track: list[tuple[float, np.ndarray, float]] = []  # the last follow's
 
     # -- low level: drive and keep the estimates ------------------------------------
 
@@ -395,14 +394,11 @@ class Explorer:
         c = self.config
         self._state = "following"
         track: list[tuple[float, np.ndarray, float]] = []  # (distance, position, heading)
-        self._track = track
         while True:
             distance = self._node_distance_m()
             if distance is not None:
                 return distance
-            _, left, right = self._ranges
-            steer = c.steer_gain * (min(left, 0.3) - min(right, 0.3))
-            self._drive(c.speed_mps, float(np.clip(steer, -1.0, 1.0)), c.control_period_ns)
+            self._drive(c.speed_mps, self._steer(0.0), c.control_period_ns)
             status = self._watchdog()
             if status is not None:
                 return status
@@ -412,6 +408,31 @@ class Explorer:
             bend = self._bend_passed(track)
             if bend is not None:
                 return bend
+
+    def _steer(self, left_m: float) -> float:
+        """The follower's turn rate: balance the front-left and front-right ranges,
+        shifted to hold the robot ``left_m`` left of the axis (at that offset, facing
+        along the pipe, the left range is shorter by ``2 left_m / sin 40deg``)."""
+        c = self.config
+        _, left, right = self._ranges
+        balance = min(left, 0.3) - min(right, 0.3)
+        if left_m:
+            balance += 2.0 * left_m / math.sin(math.radians(40.0))
+        return float(np.clip(c.steer_gain * balance, -1.0, 1.0))
+
+    def _follow_offset(self, left_m: float, distance_m: float) -> RunStatus | None:
+        """Follow the pipe ``left_m`` left of its axis for ``distance_m`` (a recovery
+        try: nodes and bends are not looked for). Stops early on a stall."""
+        c = self.config
+        start = self._result.distance_m
+        while self._result.distance_m - start < distance_m:
+            self._drive(c.speed_mps, self._steer(left_m), c.control_period_ns)
+            status = self._watchdog()
+            if status is not None:
+                return status
+            if self._stalled():
+                return None
+        return None
 
     def _bend_passed(self, track: list[tuple[float, np.ndarray, float]]) -> _Bend | None:
         """A shallow corner passed while following, from the gyro alone.
@@ -659,15 +680,16 @@ class Explorer:
             stall = self._xy_est.copy()
             move = stall - origin
             depth = float(np.linalg.norm(move))
-            axis = self._axis_heading()
             self._event(f"stall {depth:.2f} m into the pipe", warning=True)
-            if recover(driver, self.recovery, stall, axis):
+            # Back off no nearer the junction than 12 cm: still in its pipe.
+            if recover(driver, self.recovery, stall, room_m=depth - 0.12):
                 continue
             return self._halt
 
-    def _give_up(self, left: _Left) -> float | _Bend | RunStatus:
-        """Log the pipe as blocked, turn round and follow it back to the junction
-        (returns as :meth:`_follow`)."""
+    def _give_up(self, left: _Left, origin: np.ndarray) -> RunStatus | None:
+        """Log the pipe as blocked and drive back to where the robot left the junction
+        (``origin``, by odometry: it is less than a pipe away); a watchdog's status
+        if one fires, or ``STUCK`` if the way back stalls too."""
         visit = left.junction.visit_id
         if self._sink is not None:
             self._sink(PipeBlocked(self.robot.t_ns, visit, left.turn_rad))
@@ -675,23 +697,13 @@ class Explorer:
             f"pipe blocked: gave up the exit at {left.turn_rad:+.3f} rad of visit {visit}",
             warning=True,
         )
-        self._turn_to(self._yaw_est + math.pi)
+        move = origin - self._xy_est
+        back = math.atan2(move[1], move[0])
+        self._turn_to(back)
         self._state = "returning to junction"
-        found = self._follow()
-        return RunStatus.STUCK if isinstance(found, _Stall) else found
-
-    def _axis_heading(self) -> float:
-        """The pipe's axis as the follower held it: the mean heading over the last
-        0.15 m it followed (the heading now if it followed less than 5 cm). The
-        follower balances the side ranges, so its heading swings about the axis."""
-        track = self._track
-        if not track or track[-1][0] - track[0][0] < 0.05:
-            return self._yaw_est
-        recent = [h for d, _, h in track if track[-1][0] - d <= 0.15]
-        return math.atan2(
-            sum(math.sin(h) for h in recent) / len(recent),
-            sum(math.cos(h) for h in recent) / len(recent),
-        )
+        self._stall_ns = 0
+        status = self._straight(float(np.linalg.norm(move)), back, stop_on_stall=True)
+        return RunStatus.STUCK if status is None and self._stalled() else status
 
     def _choose_again(self, left: _Left) -> ExitChoice:
         """Back at the junction ``left`` from a blocked pipe: face as at the visit and
@@ -760,8 +772,11 @@ class Explorer:
                 found = self._travel(origin)
                 if found is None:
                     returning = _Left(junction, exits, steer, arrival, turn)
-                    found = self._give_up(returning)
-                if isinstance(found, RunStatus):
+                    status = self._give_up(returning, origin)
+                    if status is None:
+                        expected = origin
+                        continue  # re-centre at the junction and choose again
+                elif isinstance(found, RunStatus):
                     status = found
                 elif isinstance(found, _Bend):
                     # Back to the bend's centre, facing the way the robot came in.
@@ -773,16 +788,12 @@ class Explorer:
                     status = self._straight(float(np.linalg.norm(move)), back)
                     self._turn_to(found.arrival_heading)
                     expected = found.centre
-                    if returning is not None:
-                        expected = np.array([junction.x_m, junction.y_m])
                     if status is None:
                         arrival = found.arrival_heading
                         continue
                 else:
                     toward = np.array([math.cos(self._yaw_est), math.sin(self._yaw_est)])
                     expected = self._xy_est + found * toward
-                    if returning is not None:
-                        expected = np.array([junction.x_m, junction.y_m])
                     self._state = "approaching node"
                     status = self._straight(c.approach_fraction * found, self._yaw_est)
             if status is not None:
@@ -828,9 +839,16 @@ class _Driving:
         """A watchdog fired."""
         return self._explorer._halt is not None
 
-    def turn_to(self, heading_rad: float) -> None:
-        """Turn in place."""
-        self._explorer._turn_to(heading_rad)
+    def follow(self, left_m: float, distance_m: float) -> bool:
+        """Follow off the axis; False on a stall or a watchdog."""
+        e = self._explorer
+        e._stall_ns = 0
+        e._state = self._state
+        status = e._follow_offset(left_m, distance_m)
+        if status is not None:
+            e._halt = status
+            return False
+        return not e._stalled()
 
     def note(self, text: str, state: str) -> None:
         """An event; ``state`` names what follows in the controller's log."""
