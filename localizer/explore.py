@@ -241,7 +241,7 @@ class MapExplorer:
             if not self.explored:
                 self.explored = True
                 notes.append("explored: every known pipe traversed")
-            goal = self.start
+            goal = node if self.start is None else self.start  # set at the first step
             if goal == node or not self.config.return_home:
                 if goal == node:
                     notes.append("back at the start")

@@ -172,12 +172,11 @@ class MapPolicy:
             return ExitChoice(stop=status, notes=step.notes)
         if step.port is None or decision.exit_ports is None:
             return self._right_hand(junction, again, step.notes)
-        index: int | None = decision.exit_ports.index(step.port)
-        if _is_behind(junction.exits_rad[index]):
-            # Back the way it came (as the right-hand rule turns): the heading it drove
-            # in on is better known than the scan's opening.
-            index = None
-        return self._fallback.take(junction.visit_id, index, step.notes)
+        index = decision.exit_ports.index(step.port)
+        # Back the way it came (as the right-hand rule turns): the heading it drove in
+        # on is better known than the scan's opening.
+        behind = _is_behind(junction.exits_rad[index])
+        return self._fallback.take(junction.visit_id, None if behind else index, step.notes)
 
 
 def make_policy(

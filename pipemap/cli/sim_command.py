@@ -17,13 +17,18 @@ import re
 import shutil
 import sys
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
 from pipemap.cli.outputs import output_folder
 from pipemap.errors import InputError, WriteError
 from pipemap.imagesets import RobotNotes, write_image_set
+
+if TYPE_CHECKING:  # the simulator loads lazily: pipemap --help stays instant
+    from pipemap.sim.episode import Condition
+    from pipemap.sim.network import Network
+    from pipemap.sim.obstacles import Obstacle
 
 __all__ = ["run_sim"]
 
@@ -124,7 +129,9 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     return 0 if tour.complete else 1
 
 
-def _deposits(args, network, condition):  # type: ignore[no-untyped-def]
+def _deposits(
+    args: argparse.Namespace, network: Network, condition: Condition
+) -> tuple[Obstacle, ...]:
     """The floor deposits of ``--obstacles`` (autonomous only), checked before any work."""
     from pipemap.errors import SimError
     from pipemap.sim.episode import Condition
