@@ -91,6 +91,15 @@ def test_the_log_records_the_obstacle_setting_and_the_deposits_as_truth(
     assert sorted(kind for _, kind in truth.deposits) == ["blocking", "blocking", "passable"]
 
 
+def test_info_names_the_obstacle_setting(
+    obstacle_run: tuple[Path, object], capfd: pytest.CaptureFixture[str]
+) -> None:
+    path, _ = obstacle_run
+    assert main(["info", str(path)]) == 0
+    run = next(line for line in capfd.readouterr().out.splitlines() if line.startswith("run "))
+    assert run.endswith(f"64 px, 6 images, {COUNT} obstacles")
+
+
 def test_without_obstacles_the_settings_say_nothing_of_them() -> None:
     network = build_network("paper")
     simulator = json.loads(RecordSettings("paper").metadata(network, "t")["simulator"])
