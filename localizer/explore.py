@@ -15,6 +15,11 @@ the robot is:
    route back to the start (a real robot leaves the pipes where it came in) and
    stop there.
 
+A port the robot gave up as blocked (:meth:`TopoMap.block`) is neither untraversed
+nor routable: the exploration is ``finished`` when every port that is not blocked
+has been traversed, and no route goes through a blocked pipe. Back at the junction
+after giving a pipe up, :meth:`MapExplorer.blocked` chooses again at once.
+
 Consistency. The map can be wrong (a false merge or a false new node). The
 explorer watches for what that looks like, and counts it:
 
@@ -54,6 +59,13 @@ class Planner(Protocol):
         self, topomap: TopoMap, decision: Decision, x_m: float, y_m: float, odometer_m: float
     ) -> ExploreStep:
         """The choice at the junction of ``decision``."""
+        ...
+
+    def blocked(
+        self, topomap: TopoMap, decision: Decision, x_m: float, y_m: float, odometer_m: float
+    ) -> ExploreStep:
+        """The choice at the same junction again, now that the port last chosen is
+        blocked (``topomap`` has it marked)."""
         ...
 
 
@@ -182,6 +194,22 @@ class MapExplorer:
                 "junctions; it is not trusted"
             )
             return ExploreStep(stop=ExploreEnd.INCONSISTENT, notes=tuple(notes))
+        return self._choose(topomap, decision, notes)
+
+    def blocked(
+        self, topomap: TopoMap, decision: Decision, x_m: float, y_m: float, odometer_m: float
+    ) -> ExploreStep:
+        """The choice at the junction of ``decision`` again, its last port now blocked:
+        as :meth:`step`, without checking the visit a second time."""
+        node = decision.node
+        blocked = " ".join(str(p) for p in topomap.blocked(node))
+        notes = [f"junction {node}: port(s) {blocked} blocked"]
+        self._goal = None  # plan again: the route may have gone that way
+        self._expected = None
+        return self._choose(topomap, decision, notes)
+
+    def _choose(self, topomap: TopoMap, decision: Decision, notes: list[str]) -> ExploreStep:
+        node = decision.node
         if topomap.ports(node) is None:
             notes.append(f"stopped: junction {node} has no known pipes")
             return ExploreStep(stop=ExploreEnd.INCONSISTENT, notes=tuple(notes))
@@ -197,8 +225,14 @@ class MapExplorer:
             self._goal = None
             return ExploreStep(port=self._right_most(decision, here), notes=tuple(notes))
         targets = [] if self.explored else self._open_junctions(topomap)
+        found_route = None
         if targets:
             found_route = nearest_route(topomap, node, targets)
+            if found_route is None and any(topomap.blocked(n) for n in range(topomap.node_count)):
+                # Left only behind blocked pipes: what can be reached is explored.
+                notes.append("the junctions left to explore lie behind blocked pipes")
+                targets, self.explored = [], True
+        if targets:
             if found_route is None:
                 notes.append("stopped: no route in the map to the junctions left to explore")
                 return ExploreStep(stop=ExploreEnd.INCONSISTENT, notes=tuple(notes))
@@ -207,7 +241,7 @@ class MapExplorer:
             if not self.explored:
                 self.explored = True
                 notes.append("explored: every known pipe traversed")
-            goal = self.start
+            goal = node if self.start is None else self.start  # set at the first step
             if goal == node or not self.config.return_home:
                 if goal == node:
                     notes.append("back at the start")
@@ -278,3 +312,17 @@ class RouteFollower:
         here = self.route[self._index]
         self._index += 1
         return ExploreStep(port=here.leave_port, goal=self.goal, notes=tuple(notes))
+
+    def blocked(
+        self, topomap: TopoMap, decision: Decision, x_m: float, y_m: float, odometer_m: float
+    ) -> ExploreStep:
+        """The route's pipe here is blocked: plan again from here, around it."""
+        self.replans += 1
+        node = decision.node
+        notes = [f"junction {node}: the route's pipe is blocked: replanning"]
+        route = plan_route(topomap, node, self.goal) if self.replans <= self.max_replans else None
+        if route is None:
+            notes.append(f"stopped: no way to junction {self.goal}")
+            return ExploreStep(stop=ExploreEnd.INCONSISTENT, notes=tuple(notes))
+        self.route, self._index = route, 1
+        return ExploreStep(port=route[0].leave_port, goal=self.goal, notes=tuple(notes))

@@ -376,6 +376,11 @@ class Localizer:
         self.map.depart(port)
         return port
 
+    def block(self) -> int | None:
+        """The robot gave up the pipe it last left by and is back at the junction of
+        its last visit: that port is blocked (:meth:`TopoMap.block`). Returns it."""
+        return self.map.block()
+
     def new_traversal(self) -> None:
         """The next visit does not follow the last (the robot starts a new run on this
         map): no edge joins them, and the last junction is a candidate again."""

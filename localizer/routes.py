@@ -45,6 +45,8 @@ def _adjacency(topomap: TopoMap) -> dict[int, list[tuple[int, int, int, MapEdge]
     for e in topomap.edges():
         if e.u_port is None or e.v_port is None:
             continue
+        if topomap.is_blocked(e.u, e.u_port) or topomap.is_blocked(e.v, e.v_port):
+            continue  # given up as blocked from one side: not drivable
         out.setdefault(e.u, []).append((e.u_port, e.v, e.v_port, e))
         out.setdefault(e.v, []).append((e.v_port, e.u, e.u_port, e))
     for entries in out.values():

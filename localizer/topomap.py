@@ -13,6 +13,11 @@ only; a traversal that would join an end already joined elsewhere is a *conflict
 (the map and the robot's path disagree: a false merge or a false new node
 somewhere). It is recorded on the visit and adds no edge: the map keeps the first.
 
+A port can be *blocked*: the robot left by it, could not get through its pipe (a
+deposit it could not pass) and came back (:meth:`TopoMap.block`). A blocked port is
+neither untraversed (nothing is left to explore there) nor routable (no route
+leaves or enters by it); the map document marks it ``"blocked": true``.
+
 Without ports (image folders, older logs) an edge joins two junctions, as in the
 paper: the map records adjacency. Two consecutive visits of one junction add a
 self-loop; the localizer makes them only under the paper's rule
@@ -89,6 +94,7 @@ class TopoMap:
         self._edges: dict[Any, MapEdge] = {}
         self._ends: dict[tuple[int, int], MapEdge] = {}
         self._traversed: set[tuple[int, int]] = set()
+        self._blocked: set[tuple[int, int]] = set()
         self._visits: list[MapVisit] = []
         self._odometer: list[float | None] = []
         #: Index in ``_visits`` where the current traversal began.
@@ -99,7 +105,8 @@ class TopoMap:
     @property
     def graph(self) -> nx.MultiGraph:
         """A copy of the map as a networkx multigraph: nodes carry ``ports`` (a string
-        of angles, GraphML has no lists), edges ``label``, ``u_port``, ``v_port`` and
+        of angles, GraphML has no lists) and, when any is blocked, ``blocked`` (a
+        string of port numbers), edges ``label``, ``u_port``, ``v_port`` and
         ``length_m`` (absent when unknown)."""
         import networkx as nx
 
@@ -107,7 +114,11 @@ class TopoMap:
         for n in range(self.node_count):
             ports = self._ports[n]
             text = "" if ports is None else " ".join(f"{_round(a)}" for a in ports)
-            graph.add_node(n, ports=text)
+            blocked = self.blocked(n)
+            if blocked:
+                graph.add_node(n, ports=text, blocked=" ".join(str(p) for p in blocked))
+            else:
+                graph.add_node(n, ports=text)
         for e in self._edges.values():
             attrs: dict[str, Any] = {"label": e.label}
             if e.u_port is not None:
@@ -151,11 +162,22 @@ class TopoMap:
         return bool(self._ports) and all(p is not None for p in self._ports)
 
     def untraversed(self, node: int) -> list[int]:
-        """The ports of ``node`` the robot has neither arrived nor left by, in order."""
+        """The ports of ``node`` the robot has neither arrived nor left by, nor found
+        blocked, in order."""
         ports = self._ports[node]
         if ports is None:
             return []
-        return [p for p in range(len(ports)) if (node, p) not in self._traversed]
+        done = self._traversed | self._blocked
+        return [p for p in range(len(ports)) if (node, p) not in done]
+
+    def blocked(self, node: int) -> list[int]:
+        """The ports of ``node`` whose pipe the robot gave up as blocked, in order."""
+        ports = self._ports[node]
+        return [p for p in range(len(ports or ())) if (node, p) in self._blocked]
+
+    def is_blocked(self, node: int, port: int | None) -> bool:
+        """Whether port ``port`` of ``node`` is blocked."""
+        return port is not None and (node, port) in self._blocked
 
     def edge_at(self, node: int, port: int) -> MapEdge | None:
         """The edge that joins port ``port`` of ``node``, if known."""
@@ -247,6 +269,19 @@ class TopoMap:
             self._traversed.add((last.node, port))
         self._visits[-1] = MapVisit(last.node, last.arrival_port, port, last.conflict)
 
+    def block(self) -> int | None:
+        """The robot came back to the current junction through the port it left by:
+        that port is blocked, and the robot has left by none. Returns the port
+        (``None``: it was not known, and nothing is marked)."""
+        if not self._visits:
+            raise ValueError("no visit whose departure was blocked")
+        last = self._visits[-1]
+        port = last.departure_port
+        if port is not None:
+            self._blocked.add((last.node, port))
+        self._visits[-1] = MapVisit(last.node, last.arrival_port, None, last.conflict)
+        return port
+
     def new_traversal(self) -> None:
         """The next visit does not follow the last one (the robot was carried, or a
         new run starts on this map): no edge joins them."""
@@ -261,7 +296,9 @@ class TopoMap:
                 {
                     "id": n,
                     "ports": [
-                        {"port": p, "angle_rad": _round(a)} for p, a in enumerate(ports or ())
+                        {"port": p, "angle_rad": _round(a)}
+                        | ({"blocked": True} if (n, p) in self._blocked else {})
+                        for p, a in enumerate(ports or ())
                     ],
                 }
                 for n, ports in enumerate(self._ports)
@@ -306,6 +343,10 @@ class TopoMap:
                     or not -4.0 < angle < 4.0
                 ):
                     raise ValueError(f"node {i}: port {k} is not {{'port': {k}, 'angle_rad': A}}")
+                if port.get("blocked", False) not in (True, False):
+                    raise ValueError(f"node {i}: port {k}: blocked is not true or false")
+                if port.get("blocked", False):
+                    m._blocked.add((i, k))
                 angles.append(float(angle))
             m._ports.append(tuple(angles) if angles else None)
         for k, edge in enumerate(edges):

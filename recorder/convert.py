@@ -21,6 +21,7 @@ from pipemap.sim.stream import (
     NodeDeparture,
     NodeExits,
     Note,
+    PipeBlocked,
     SimRecord,
     SweepImage,
     SweepStart,
@@ -190,6 +191,8 @@ class RecordConverter:
                     exit_rad=record.exit_rad,
                 ),
             )
+        elif isinstance(record, PipeBlocked):
+            w.write(Topic.EVENTS, t, messages.blocked_message(t, record.visit_id, record.exit_rad))
         elif isinstance(record, Note):
             w.write(Topic.EVENTS, t, messages.log_message(t, record.text, record.warning))
         else:

@@ -8,11 +8,13 @@ lossless PNG: a replay must see exactly what the robot saw.
 from __future__ import annotations
 
 import math
+import re
 from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.Point3_pb2 import Point3
 from foxglove_schemas_protobuf.Pose_pb2 import Pose as FoxglovePose
@@ -29,6 +31,7 @@ from pipemap.recorder import schemas
 if TYPE_CHECKING:
     from pipemap.localizer import Decision as LocalizerDecision
     from pipemap.sim.network import Network
+    from pipemap.sim.obstacles import Obstacle
 
 __all__ = [
     "WORLD_FRAME",
@@ -36,6 +39,8 @@ __all__ = [
     "decode_png",
     "encode_png",
     "image_message",
+    "blocked_message",
+    "blocked_visit",
     "log_message",
     "network_message",
     "png_problem",
@@ -103,10 +108,45 @@ def log_message(t_ns: int, text: str, warning: bool = False) -> schemas.Log:
     return schemas.Log(timestamp=timestamp(t_ns), level=level, message=text, name="pipemap")
 
 
-def network_message(network: Network, t_ns: int = 0) -> schemas.SceneUpdate:
+#: The ``name`` of the ``/robot/events`` log line that says a pipe was given up.
+BLOCKED_NAME = "pipemap.blocked"
+_BLOCKED_TEXT = re.compile(r"^pipe blocked: visit (\d+), exit (\S+) rad$")
+
+
+def blocked_message(t_ns: int, visit_id: int, exit_rad: float) -> schemas.Log:
+    """The robot gave up the pipe it last left visit ``visit_id``'s junction by, at
+    ``exit_rad`` from its arrival heading: a ``/robot/events`` warning named
+    :data:`BLOCKED_NAME` (the log's schemas stay as they were)."""
+    return schemas.Log(
+        timestamp=timestamp(t_ns),
+        level=schemas.Log.Level.WARNING,
+        message=f"pipe blocked: visit {visit_id}, exit {exit_rad!r} rad",
+        name=BLOCKED_NAME,
+    )
+
+
+def blocked_visit(log: schemas.Log) -> tuple[int, float] | None:
+    """The visit id and exit of a :func:`blocked_message`, or ``None`` for any other
+    log line (or a malformed one)."""
+    if log.name != BLOCKED_NAME:
+        return None
+    found = _BLOCKED_TEXT.match(log.message)
+    if found is None:
+        return None
+    try:
+        return int(found.group(1)), float(found.group(2))
+    except ValueError:
+        return None
+
+
+def network_message(
+    network: Network, t_ns: int = 0, obstacles: tuple[Obstacle, ...] = ()
+) -> schemas.SceneUpdate:
     """The network's pipes (centre lines, with their diameter) and labelled nodes as
     Foxglove's ``SceneUpdate``: one entity per pipe (``pipe/A-B``) and per node
-    (``node/A``), in the world frame."""
+    (``node/A``), in the world frame; and one per floor deposit (``obstacle/K``, a
+    cube, with metadata ``pipe`` ``A-B`` and ``kind`` ``passable`` or ``blocking``),
+    when there are any."""
     update = schemas.SceneUpdate()
     grey = Color(r=0.6, g=0.6, b=0.6, a=1.0)
     for pipe in network.pipes:
@@ -146,6 +186,22 @@ def network_message(network: Network, t_ns: int = 0) -> schemas.SceneUpdate:
             )
         )
         entity.metadata.add(key="kind", value=network.kind(node.label).value)
+        update.entities.append(entity)
+    for k, o in enumerate(obstacles):
+        entity = SceneEntity(timestamp=timestamp(t_ns), frame_id=WORLD_FRAME, id=f"obstacle/{k}")
+        at = FoxglovePose(
+            position=Vector3(x=o.centre_xy_m[0], y=o.centre_xy_m[1], z=o.height_m / 2.0),
+            orientation=_yaw_quaternion(o.heading_rad),
+        )
+        entity.cubes.append(
+            CubePrimitive(
+                pose=at,
+                size=Vector3(x=o.length_m, y=o.width_m, z=o.height_m),
+                color=Color(r=0.6, g=0.4, b=0.2, a=1.0),
+            )
+        )
+        entity.metadata.add(key="pipe", value=f"{o.a}-{o.b}")
+        entity.metadata.add(key="kind", value=o.kind.value)
         update.entities.append(entity)
     return update
 

@@ -36,10 +36,17 @@ from pipemap.localizer import (
 )
 from pipemap.sim.controller import ExplorationResult, ExplorerConfig, autonomous_run
 from pipemap.sim.episode import Sweep
-from pipemap.sim.policy import ExitChoice, ExitPolicy, Junction, RightHandPolicy, RunStatus
+from pipemap.sim.policy import (
+    BlockedExits,
+    ExitChoice,
+    ExitPolicy,
+    Junction,
+    RightHandPolicy,
+    RunStatus,
+)
 from pipemap.sim.policy import is_behind as _is_behind
 from pipemap.sim.policy import right_most as _right_most
-from pipemap.sim.stream import NodeDeparture, NodeExits, SimRecord, SweepEnd
+from pipemap.sim.stream import NodeDeparture, NodeExits, PipeBlocked, SimRecord, SweepEnd
 from pipemap.sim.world import CameraSpec, World
 
 __all__ = [
@@ -101,6 +108,8 @@ class OnlineLocalizer:
             self._decide(record.visit_id, record.exits_rad, record.odometer_m)
         elif isinstance(record, NodeDeparture) and record.visit_id in self.decisions:
             self.localizer.depart(record.exit_rad)
+        elif isinstance(record, PipeBlocked) and record.visit_id in self.decisions:
+            self.localizer.block()
 
     def _decide(
         self, visit_id: int, exits: tuple[float, ...] | None, odometer_m: float | None
@@ -127,13 +136,33 @@ class MapPolicy:
     def __init__(self, online: OnlineLocalizer, explorer: Planner | None = None) -> None:
         self.online = online
         self.explorer: Planner = explorer if explorer is not None else MapExplorer()
+        #: Where the map cannot choose, the right-most exit (and the next after a
+        #: blocked one).
+        self._fallback = BlockedExits()
+
+    def _right_hand(self, junction: Junction, again: bool, notes: tuple[str, ...]) -> ExitChoice:
+        fallback = self._fallback
+        if again:
+            choice = fallback.next_right_most(junction)
+            return ExitChoice(choice.exit_index, notes=notes + choice.notes)
+        return fallback.take(junction.visit_id, _right_most(junction.exits_rad), notes)
 
     def choose(self, junction: Junction) -> ExitChoice:
         """The exit to the port the explorer chooses, or the end of the run."""
+        return self._choice(junction, again=False)
+
+    def blocked(self, junction: Junction) -> ExitChoice:
+        """The explorer's choice again, the port last chosen now blocked in the map
+        (the online localizer marked it from the robot's
+        :class:`~pipemap.sim.stream.PipeBlocked`)."""
+        return self._choice(junction, again=True)
+
+    def _choice(self, junction: Junction, again: bool) -> ExitChoice:
         decision = self.online.decisions.get(junction.visit_id)
         if decision is None:  # no sweep was decided here: nothing to go by
-            return ExitChoice(_right_most(junction.exits_rad), notes=("no decision here",))
-        step = self.explorer.step(
+            return self._right_hand(junction, again, ("no decision here",))
+        ask = self.explorer.blocked if again else self.explorer.step
+        step = ask(
             self.online.localizer.map, decision, junction.x_m, junction.y_m, junction.odometer_m
         )
         if step.stop is not None:
@@ -142,13 +171,12 @@ class MapPolicy:
             )
             return ExitChoice(stop=status, notes=step.notes)
         if step.port is None or decision.exit_ports is None:
-            return ExitChoice(_right_most(junction.exits_rad), notes=step.notes)
+            return self._right_hand(junction, again, step.notes)
         index = decision.exit_ports.index(step.port)
-        if _is_behind(junction.exits_rad[index]):
-            # Back the way it came (as the right-hand rule turns): the heading it drove
-            # in on is better known than the scan's opening.
-            return ExitChoice(None, notes=step.notes)
-        return ExitChoice(index, notes=step.notes)
+        # Back the way it came (as the right-hand rule turns): the heading it drove in
+        # on is better known than the scan's opening.
+        behind = _is_behind(junction.exits_rad[index])
+        return self._fallback.take(junction.visit_id, None if behind else index, step.notes)
 
 
 def make_policy(

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pipemap.errors import InputError
+from pipemap.errors import InputError, SimError
 from pipemap.localizer import (
     DEFAULT_THRESHOLD,
     Decision,
@@ -45,6 +45,8 @@ from pipemap.recorder.topics import FORMAT_VERSION, Topic
 from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
 from pipemap.sim.episode import Condition, Episode, SimConfig, Sweep, Visit
 from pipemap.sim.network import Network
+from pipemap.sim.obstacles import Obstacle, ObstacleKind, place_obstacles
+from pipemap.sim.recovery import RecoveryConfig
 from pipemap.sim.robot import PlanarPose, RobotSpec
 from pipemap.sim.stream import (
     NodeArrival,
@@ -58,7 +60,14 @@ from pipemap.sim.stream import (
 )
 from pipemap.sim.world import CameraSpec, World
 
-__all__ = ["Progress", "RecordResult", "RecordSettings", "RunObserver", "record_run"]
+__all__ = [
+    "Progress",
+    "RecordResult",
+    "RecordSettings",
+    "RunObserver",
+    "covers",
+    "record_run",
+]
 
 _NS_PER_S = 1_000_000_000
 #: Placement conditions: the camera motor's step, a probe move, the cruising speed.
@@ -85,6 +94,25 @@ class RecordSettings:
     lamp_strength: float = 1.0
     #: The robot off level (placement conditions): see ``SimConfig.tilt_rad``.
     tilt_rad: float = 0.0
+    #: Floor deposits in as many pipes, drawn from the seed (autonomous condition):
+    #: see :mod:`sim.obstacles`. 0: none, and the log is as without the setting.
+    obstacles: int = 0
+
+    def __post_init__(self) -> None:
+        if self.obstacles < 0:
+            raise InputError(f"--obstacles must be >= 0, got {self.obstacles}")
+        if self.obstacles and self.condition is not Condition.AUTONOMOUS:
+            raise InputError(
+                "--obstacles: only the autonomous robot drives into deposits; placed by "
+                f"hand ({self.condition.value}) it never meets one"
+            )
+
+    def deposits(self, network: Network) -> tuple[Obstacle, ...]:
+        """The run's floor deposits (none by default)."""
+        try:
+            return place_obstacles(network, self.obstacles, self.seed)
+        except SimError as error:
+            raise InputError(f"--obstacles {self.obstacles}: {error}") from None
 
     def camera(self) -> CameraSpec:
         """The camera of the run."""
@@ -99,6 +127,12 @@ class RecordSettings:
         }
         if self.condition is Condition.AUTONOMOUS:
             simulator["explorer"] = dataclasses.asdict(self._explorer())
+            if self.obstacles:
+                # Only with deposits: a log without them stays as it always was.
+                simulator["obstacles"] = {
+                    "count": self.obstacles,
+                    "recovery": dataclasses.asdict(RecoveryConfig()),
+                }
         else:
             simulator["placement"] = dataclasses.asdict(self._sim_config())
             simulator["placement"].pop("camera")
@@ -353,6 +387,31 @@ def _pipes_driven(network: Network, path: list[str]) -> int:
     return len({frozenset(ab) for ab in zip(path, path[1:], strict=False)} & pipes)
 
 
+def covers(
+    network: Network, deposits: tuple[Obstacle, ...], nodes: set[str], path: list[str]
+) -> bool:
+    """Whether a run whose sweeps were at true ``nodes`` along ``path`` covered the
+    network: every node and pipe swept and driven; with blocking deposits, every
+    node reachable without driving a blocked pipe, and every other pipe among them."""
+    blocked = {o.pipe for o in deposits if o.kind is ObstacleKind.BLOCKING}
+    if not blocked:
+        return nodes - {"?"} == set(network.labels) and _pipes_driven(network, path) == len(
+            network.pipes
+        )
+    start = path[0] if path else ""
+    reach, todo = {start}, [start]
+    while todo:
+        here = todo.pop()
+        for there in network.neighbours(here) if here in network.labels else ():
+            pipe = (min(here, there), max(here, there))
+            if pipe not in blocked and there not in reach:
+                reach.add(there)
+                todo.append(there)
+    open_pipes = {(min(p.a, p.b), max(p.a, p.b)) for p in network.pipes if p.a in reach} - blocked
+    driven = {(min(a, b), max(a, b)) for a, b in zip(path, path[1:], strict=False)}
+    return reach <= nodes and open_pipes <= driven
+
+
 def record_run(
     path: Path,
     settings: RecordSettings,
@@ -374,11 +433,13 @@ def record_run(
     camera = settings.camera()
     config = LocalizerConfig(threshold=settings.threshold)
     localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
+    deposits = settings.deposits(network)  # checked before the log is opened
     mode = "wb" if overwrite else "xb"
     with BackgroundWriter(path, mode, settings.metadata(network, version)) as writer:
         sink = _OnlineSink(writer, localizer, camera, progress, observer)
-        sink.put(ReadyMessage.of(0, Topic.NETWORK, messages.network_message(network)))
-        with World(network, seed=settings.seed) as world:
+        truth = messages.network_message(network, obstacles=deposits)
+        sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
+        with World(network, seed=settings.seed, obstacles=deposits) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
                 explorer = settings._explorer()
@@ -396,9 +457,9 @@ def record_run(
                 )
                 status = result.status.value
                 distance, duration = result.distance_m, result.duration_ns
-                # The robot believes it is done; the truth says whether it covered all.
-                covered = sink.true_nodes - {"?"} == set(network.labels)
-                covered = covered and _pipes_driven(network, sink.true_path) == len(network.pipes)
+                # The robot believes it is done; the truth says whether it covered all
+                # it could reach (every pipe but the blocked ones).
+                covered = covers(network, deposits, sink.true_nodes, sink.true_path)
                 ok = result.status is RunStatus.FINISHED and covered
             else:
                 placed = _PlacedRun(world, settings, sink)

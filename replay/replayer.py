@@ -39,9 +39,9 @@ from pipemap.localizer import (
     map_document,
 )
 from pipemap.recorder import Integrity, LogMessage, Topic
-from pipemap.recorder.messages import decode_png
+from pipemap.recorder.messages import blocked_visit, decode_png
 from pipemap.recorder.metadata import lamp_strength
-from pipemap.recorder.schemas import CompressedImage, NodeEvent, SweepCommand
+from pipemap.recorder.schemas import CompressedImage, Log, NodeEvent, SweepCommand
 from pipemap.replay.source import MessageSource
 
 __all__ = [
@@ -84,6 +84,9 @@ class LoggedExits:
     odometer_m: float | None = None
     #: The pipe taken, relative to the arrival heading; ``None``: no departure.
     departure_rad: float | None = None
+    #: The pipes the robot left by first and gave up as blocked (``pipemap.blocked``
+    #: events), in order, before it left by ``departure_rad``.
+    blocked_rad: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -257,11 +260,22 @@ def node_events_of(
     messages: list[LogMessage], warnings: list[str] | None = None, name: str = "log"
 ) -> dict[int, LoggedExits]:
     """Each visit's exit scan and departure from ordered ``/robot`` messages. Node
-    events that do not decode are skipped, with a line in ``warnings``."""
+    events that do not decode are skipped, with a line in ``warnings``.
+
+    A visit may have several departures: each but the last was given up (a
+    ``pipemap.blocked`` event of ``/robot/events`` follows it) and the robot came
+    back; the last is the pipe it left by (or another given up, when the run ended
+    before it left again)."""
     scans: dict[int, NodeEvent] = {}
-    departures: dict[int, float] = {}
+    departures: dict[int, list[float]] = {}
+    given_up: dict[int, int] = {}
     undecodable = 0
     for m in messages:
+        if m.topic == Topic.EVENTS:
+            blocked = _blocked_event(m.data)
+            if blocked is not None:
+                given_up[blocked] = given_up.get(blocked, 0) + 1
+            continue
         if m.topic != Topic.NODE:
             continue
         try:
@@ -272,7 +286,7 @@ def node_events_of(
         if event.kind == NodeEvent.EXITS:
             scans.setdefault(event.visit_id, event)
         elif event.kind == NodeEvent.DEPARTURE:
-            departures.setdefault(event.visit_id, event.exit_rad)
+            departures.setdefault(event.visit_id, []).append(event.exit_rad)
     if undecodable and warnings is not None:
         warnings.append(
             f"{name}: {undecodable} node event(s) do not decode as pipemap.NodeEvent; "
@@ -281,15 +295,27 @@ def node_events_of(
     out: dict[int, LoggedExits] = {}
     for visit_id in sorted(set(scans) | set(departures)):
         scan = scans.get(visit_id)
+        left = departures.get(visit_id, [])
+        blocked = min(given_up.get(visit_id, 0), len(left))
         out[visit_id] = LoggedExits(
             visit_id,
             None if scan is None else tuple(scan.exits_rad),
             0.0 if scan is None else scan.x_estimate_m,
             0.0 if scan is None else scan.y_estimate_m,
             None if scan is None else scan.odometer_m,
-            departures.get(visit_id),
+            left[blocked] if blocked < len(left) else None,
+            tuple(left[:blocked]),
         )
     return out
+
+
+def _blocked_event(data: bytes) -> int | None:
+    """The visit id of a ``pipemap.blocked`` event, or ``None`` for any other line."""
+    try:
+        found = blocked_visit(Log.FromString(data))
+    except DecodeError:
+        return None
+    return None if found is None else found[0]
 
 
 class _LoggedProbes:
@@ -363,6 +389,9 @@ def replay(
             localizer, sweep.images, probes.get(sweep.visit_id, []), exits, odometer
         )
         latency = time.perf_counter() - start
+        for given_up in () if scan is None else scan.blocked_rad:
+            localizer.depart(given_up)
+            localizer.block()
         if scan is not None and scan.departure_rad is not None:
             localizer.depart(scan.departure_rad)
         decided.append(

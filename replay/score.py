@@ -43,7 +43,14 @@ from pipemap.localizer import (
 )
 from pipemap.recorder import Integrity, Topic
 from pipemap.recorder.schemas import TrueSweep
-from pipemap.replay.coverage import Coverage, coverage_of, ports_correct, true_network
+from pipemap.replay.coverage import (
+    BlockedPipes,
+    Coverage,
+    blocked_of,
+    coverage_of,
+    ports_correct,
+    true_network,
+)
 from pipemap.replay.replayer import ReplayResult, replay, visit_label
 from pipemap.replay.source import MessageSource
 
@@ -130,6 +137,9 @@ class ScoreReport:
     ports_correct: bool | None = None
     #: The map is right as far as the run went (``map_correct`` needs coverage too).
     mapped_part_correct: bool = False
+    #: Blocked pipes, marked and true; ``None`` when the truth has no deposit and the
+    #: map marks nothing blocked.
+    blocked: BlockedPipes | None = None
 
     @property
     def map_status(self) -> str:
@@ -170,6 +180,7 @@ class ScoreReport:
             "map": self.map_status,
             "coverage": None if self.coverage is None else self.coverage.document(),
             "ports_correct": self.ports_correct,
+            **({} if self.blocked is None else {"blocked": self.blocked.document()}),
             "visits": len(self.visits),
             "true_nodes": self.true_nodes,
             "predicted_nodes": self.predicted_nodes,
@@ -378,6 +389,13 @@ def score_replay(
     if network is not None:
         ports = ports_correct(result.topomap, network, created)
     complete = coverage is None or coverage.complete
+    blocked = None
+    marks = any(result.topomap.blocked(n) for n in range(result.topomap.node_count))
+    if network is not None and (network.deposits or marks):
+        blocked = blocked_of(result.topomap, network, created, true[0] if true else None)
+        # A blocked pipe cannot be mapped: the map is correct when every reachable
+        # node and open pipe is, and it marks exactly the reachable blocked pipes.
+        complete = complete and blocked.correct
     return ScoreReport(
         log=source.name,
         integrity=result.integrity.value,
@@ -390,6 +408,7 @@ def score_replay(
         coverage=coverage,
         ports_correct=ports,
         mapped_part_correct=mapped,
+        blocked=blocked,
     )
 
 

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 from pipemap.sim.episode import Condition, Episode, Pose, SimConfig, Sweep, Visit
 from pipemap.sim.network import Network, Node, NodeKind, Pipe, build_network
+from pipemap.sim.obstacles import Obstacle, ObstacleKind, place_obstacles
 from pipemap.sim.plan import Tour, right_hand_tour, tour_edges
 from pipemap.sim.policy import ExitChoice, ExitPolicy, Junction, RightHandPolicy, RunStatus
+from pipemap.sim.recovery import RecoveryConfig
 from pipemap.sim.robot import PlanarPose, Robot, RobotSpec
 from pipemap.sim.stream import (
     ControlStep,
@@ -17,6 +19,7 @@ from pipemap.sim.stream import (
     NodeDeparture,
     NodeExits,
     Note,
+    PipeBlocked,
     RecordSink,
     SimRecord,
     SweepEnd,
@@ -41,10 +44,14 @@ __all__ = [
     "NodeExits",
     "NodeKind",
     "Note",
+    "Obstacle",
+    "ObstacleKind",
     "Pipe",
+    "PipeBlocked",
     "PlanarPose",
     "Pose",
     "RecordSink",
+    "RecoveryConfig",
     "RightHandPolicy",
     "Robot",
     "RobotSpec",
@@ -60,6 +67,7 @@ __all__ = [
     "Visit",
     "World",
     "build_network",
+    "place_obstacles",
     "right_hand_tour",
     "tour_edges",
 ]

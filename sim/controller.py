@@ -22,8 +22,14 @@ pipe to take at a junction is its :class:`~pipemap.sim.policy.ExitPolicy`'s choi
   when back at the start (by odometry) as many times as it has pipes: on a tree the
   rule has then covered everything. **Turn** to the exit by gyro and **leave** until
   the node is behind.
+* **Get unstuck** (:mod:`sim.recovery`): a stall in a pipe (commanded motion, the
+  wheels not turning) starts a bounded recovery: back off, re-centre, retry to
+  either side. When every try stalls the pipe is given up: the robot logs it
+  (:class:`~pipemap.sim.stream.PipeBlocked`), drives back to the junction it came
+  from, faces as it did there, and asks its policy again
+  (:meth:`~pipemap.sim.policy.ExitPolicy.blocked`), without a new sweep.
 * A watchdog ends a run whose robot touches a wall or stops making progress, with
-  that reason.
+  that reason: the last resort.
 """
 
 from __future__ import annotations
@@ -37,7 +43,8 @@ from scipy.spatial import cKDTree
 
 from pipemap.sim.episode import Pose, Sweep, sweep_start_angle
 from pipemap.sim.network import Network
-from pipemap.sim.policy import ExitPolicy, Junction, RightHandPolicy, RunStatus
+from pipemap.sim.policy import ExitChoice, ExitPolicy, Junction, RightHandPolicy, RunStatus
+from pipemap.sim.recovery import RecoveryConfig, recover
 from pipemap.sim.robot import (
     NS_PER_S,
     EncoderReading,
@@ -53,6 +60,7 @@ from pipemap.sim.stream import (
     NodeDeparture,
     NodeExits,
     Note,
+    PipeBlocked,
     RecordSink,
     SweepEnd,
     SweepImage,
@@ -82,6 +90,24 @@ class _Bend:
 
     centre: np.ndarray
     arrival_heading: float
+
+
+class _Stall:
+    """What :meth:`Explorer._follow` returns when the robot stalled."""
+
+
+_STALL = _Stall()
+
+
+@dataclass(frozen=True)
+class _Left:
+    """A junction the robot left, to come back to if the pipe is blocked."""
+
+    junction: Junction
+    exits: list[float]
+    steer: list[float]
+    arrival: float
+    turn_rad: float
 
 
 @dataclass(frozen=True)
@@ -246,8 +272,10 @@ class Explorer:
         true_node_of: Callable[[PlanarPose], str] | None = None,
         sink: RecordSink | None = None,
         policy: ExitPolicy | None = None,
+        recovery: RecoveryConfig | None = None,
     ) -> None:
         self.robot = robot
+        self.recovery = recovery if recovery is not None else RecoveryConfig()
         self.camera = camera
         self.config = config if config is not None else ExplorerConfig()
         if policy is None:
@@ -270,6 +298,9 @@ class Explorer:
         self._last_progress_ns = 0
         self._sink = sink
         self._state = "calibrating"  # what the robot believes it is doing, for the log
+        # Commanded motion with the encoders standing still, so far (a stall).
+        self._stall_ns = 0
+        self._halt: RunStatus | None = None  # a watchdog fired during a recovery
 
     # -- low level: drive and keep the estimates ------------------------------------
 
@@ -287,6 +318,7 @@ class Explorer:
         spec = self.robot.spec
         metres_per_tick = math.pi * spec.wheel_diameter_m / spec.encoder_ticks_per_rev
         still = v == 0.0 and w == 0.0
+        ticks_before = self._ticks
         first_imu = True
         for r in readings:
             if isinstance(r, ImuReading):
@@ -313,6 +345,14 @@ class Explorer:
             if self._sink is not None:
                 self._sink(r)
         self._result.readings.extend(readings)
+        if not still and self._ticks == ticks_before:
+            self._stall_ns += duration_ns
+        else:
+            self._stall_ns = 0
+
+    def _stalled(self) -> bool:
+        """Commanded motion, and the wheels have not turned for the recovery's stall time."""
+        return self._stall_ns >= self.recovery.stall_ns
 
     def _gyro_bias(self) -> float:
         """Mean yaw rate over every sample taken standing still (0 before any)."""
@@ -348,9 +388,9 @@ class Explorer:
             candidates.append(ahead + _HALF_WIDTH_M)
         return min(candidates) if candidates else None
 
-    def _follow(self) -> float | _Bend | RunStatus:
-        """Follow the pipe until a node is detected ahead (returns its distance) or a
-        bend has been passed (returns where it was)."""
+    def _follow(self) -> float | _Bend | RunStatus | _Stall:
+        """Follow the pipe until a node is detected ahead (returns its distance), a
+        bend has been passed (returns where it was) or the robot stalls."""
         c = self.config
         self._state = "following"
         track: list[tuple[float, np.ndarray, float]] = []  # (distance, position, heading)
@@ -358,16 +398,41 @@ class Explorer:
             distance = self._node_distance_m()
             if distance is not None:
                 return distance
-            _, left, right = self._ranges
-            steer = c.steer_gain * (min(left, 0.3) - min(right, 0.3))
-            self._drive(c.speed_mps, float(np.clip(steer, -1.0, 1.0)), c.control_period_ns)
+            self._drive(c.speed_mps, self._steer(0.0), c.control_period_ns)
             status = self._watchdog()
             if status is not None:
                 return status
+            if self._stalled():
+                return _STALL
             track.append((self._result.distance_m, self._xy_est.copy(), self._yaw_est))
             bend = self._bend_passed(track)
             if bend is not None:
                 return bend
+
+    def _steer(self, left_m: float) -> float:
+        """The follower's turn rate: balance the front-left and front-right ranges,
+        shifted to hold the robot ``left_m`` left of the axis (at that offset, facing
+        along the pipe, the left range is shorter by ``2 left_m / sin 40deg``)."""
+        c = self.config
+        _, left, right = self._ranges
+        balance = min(left, 0.3) - min(right, 0.3)
+        if left_m:
+            balance += 2.0 * left_m / math.sin(math.radians(40.0))
+        return float(np.clip(c.steer_gain * balance, -1.0, 1.0))
+
+    def _follow_offset(self, left_m: float, distance_m: float) -> RunStatus | None:
+        """Follow the pipe ``left_m`` left of its axis for ``distance_m`` (a recovery
+        try: nodes and bends are not looked for). Stops early on a stall."""
+        c = self.config
+        start = self._result.distance_m
+        while self._result.distance_m - start < distance_m:
+            self._drive(c.speed_mps, self._steer(left_m), c.control_period_ns)
+            status = self._watchdog()
+            if status is not None:
+                return status
+            if self._stalled():
+                return None
+        return None
 
     def _bend_passed(self, track: list[tuple[float, np.ndarray, float]]) -> _Bend | None:
         """A shallow corner passed while following, from the gyro alone.
@@ -397,8 +462,12 @@ class Explorer:
             return None
         return _Bend(centre, before[2])
 
-    def _straight(self, distance_m: float, heading: float) -> RunStatus | None:
-        """Drive ``distance_m`` by odometry holding ``heading``; backwards if negative."""
+    def _straight(
+        self, distance_m: float, heading: float, stop_on_stall: bool = False
+    ) -> RunStatus | None:
+        """Drive ``distance_m`` by odometry holding ``heading``; backwards if negative.
+        With ``stop_on_stall`` a stall ends the drive early (see :meth:`_stalled`);
+        without, the watchdog ends a drive that makes no progress."""
         c = self.config
         travelled = 0.0
         start = self._xy_est.copy()
@@ -414,6 +483,8 @@ class Explorer:
             status = self._watchdog()
             if status is not None:
                 return status
+            if stop_on_stall and self._stalled():
+                return None
         return None
 
     def _turn_to(self, heading: float) -> None:
@@ -465,6 +536,8 @@ class Explorer:
         while self._yaw_est - start < 2.0 * math.pi:
             self._drive(0.0, c.turn_rate_rps, c.control_period_ns)
             samples.append((self._yaw_est, self._ranges[0]))
+            if self._stalled():  # cannot turn: the watchdog ends the run later
+                break
         self._turn_to(start)
         return samples
 
@@ -594,6 +667,51 @@ class Explorer:
         deep = ranges >= depth * float(ranges.max())
         return float(np.mean(yaws[deep]))
 
+    def _travel(self, origin: np.ndarray) -> float | _Bend | RunStatus | None:
+        """Follow the pipe entered at ``origin`` (as :meth:`_follow`), getting past
+        what stalls the robot (:func:`sim.recovery.recover`). ``None``: every try
+        stalled and the pipe is given up; the robot stands clear of the stall, facing
+        along the pipe."""
+        driver = _Driving(self)
+        while True:
+            found = self._follow()
+            if not isinstance(found, _Stall):
+                return found
+            stall = self._xy_est.copy()
+            move = stall - origin
+            depth = float(np.linalg.norm(move))
+            self._event(f"stall {depth:.2f} m into the pipe", warning=True)
+            # Back off no nearer the junction than 12 cm: still in its pipe.
+            if recover(driver, self.recovery, stall, room_m=depth - 0.12):
+                continue
+            return self._halt
+
+    def _give_up(self, left: _Left, origin: np.ndarray) -> RunStatus | None:
+        """Log the pipe as blocked and drive back to where the robot left the junction
+        (``origin``, by odometry: it is less than a pipe away); a watchdog's status
+        if one fires, or ``STUCK`` if the way back stalls too."""
+        visit = left.junction.visit_id
+        if self._sink is not None:
+            self._sink(PipeBlocked(self.robot.t_ns, visit, left.turn_rad))
+        self._event(
+            f"pipe blocked: gave up the exit at {left.turn_rad:+.3f} rad of visit {visit}",
+            warning=True,
+        )
+        move = origin - self._xy_est
+        back = math.atan2(move[1], move[0])
+        self._turn_to(back)
+        self._state = "returning to junction"
+        self._stall_ns = 0
+        status = self._straight(float(np.linalg.norm(move)), back, stop_on_stall=True)
+        return RunStatus.STUCK if status is None and self._stalled() else status
+
+    def _choose_again(self, left: _Left) -> ExitChoice:
+        """Back at the junction ``left`` from a blocked pipe: face as at the visit and
+        ask the policy again."""
+        self._turn_to(left.arrival)
+        self._event(f"back at the junction of visit {left.junction.visit_id}")
+        return self.policy.blocked(left.junction)
+
     def run(self) -> ExplorationResult:
         """Explore until the policy stops the run, or the watchdog does.
 
@@ -605,6 +723,7 @@ class Explorer:
         arrival = self._yaw_est
         expected = self._xy_est.copy()
         first = True
+        returning: _Left | None = None  # from a blocked pipe, to this junction
         self._drive(0.0, 0.0, c.calibrate_ns)  # stand still: measure the gyro bias
         while True:
             if not first:
@@ -614,15 +733,24 @@ class Explorer:
                     self._event(f"watchdog: {status.value}", warning=True)
                     break
             first = False
-            self._sweep()
-            exits, steer = self._scan()
-            visit = len(self._result.sweeps)
-            relative = tuple(math.remainder(e - arrival, 2.0 * math.pi) for e in exits)
-            x, y = (float(v) for v in self._xy_est)
-            odometer = self._result.distance_m
-            if self._sink is not None:
-                self._sink(NodeExits(self.robot.t_ns, visit, relative, x, y, odometer))
-            choice = self.policy.choose(Junction(visit, relative, x, y, odometer))
+            if returning is not None:
+                junction, exits, steer = returning.junction, returning.exits, returning.steer
+                arrival = returning.arrival
+                choice = self._choose_again(returning)
+                returning = None
+            else:
+                self._sweep()
+                exits, steer = self._scan()
+                relative = tuple(math.remainder(e - arrival, 2.0 * math.pi) for e in exits)
+                x, y = (float(v) for v in self._xy_est)
+                odometer = self._result.distance_m
+                junction = Junction(len(self._result.sweeps), relative, x, y, odometer)
+                if self._sink is not None:
+                    self._sink(
+                        NodeExits(self.robot.t_ns, junction.visit_id, relative, x, y, odometer)
+                    )
+                choice = self.policy.choose(junction)
+            visit = junction.visit_id
             for note in choice.notes:
                 self._event(note)
             if choice.stop is not None:
@@ -633,15 +761,22 @@ class Explorer:
             back = arrival + math.pi
             reported = back if choice.exit_index is None else exits[choice.exit_index]
             heading = back if choice.exit_index is None else steer[choice.exit_index]
+            turn = math.remainder(reported - arrival, 2.0 * math.pi)
             if self._sink is not None:
-                turn = math.remainder(reported - arrival, 2.0 * math.pi)
                 self._sink(NodeDeparture(self.robot.t_ns, visit, len(exits), turn))
+            origin = self._xy_est.copy()
             self._turn_to(heading)
             self._state = "leaving node"
             status = self._straight(0.2, heading)
             if status is None:
-                found = self._follow()
-                if isinstance(found, RunStatus):
+                found = self._travel(origin)
+                if found is None:
+                    returning = _Left(junction, exits, steer, arrival, turn)
+                    status = self._give_up(returning, origin)
+                    if status is None:
+                        expected = origin
+                        continue  # re-centre at the junction and choose again
+                elif isinstance(found, RunStatus):
                     status = found
                 elif isinstance(found, _Bend):
                     # Back to the bend's centre, facing the way the robot came in.
@@ -670,6 +805,55 @@ class Explorer:
         if self._sink is not None:
             self._sink(TruePose(self.robot.t_ns, self.robot.pose))
         return self._result
+
+
+class _Driving:
+    """The explorer as :func:`sim.recovery.recover` drives it."""
+
+    def __init__(self, explorer: Explorer) -> None:
+        self._explorer = explorer
+        self._state = "recovering"
+
+    def position(self) -> np.ndarray:
+        """Dead reckoning."""
+        return self._explorer._xy_est.copy()
+
+    def straight(self, distance_m: float, heading_rad: float) -> bool:
+        """Drive; False on a stall or a watchdog."""
+        e = self._explorer
+        if abs(distance_m) < 1e-3:
+            return True
+        e._stall_ns = 0
+        e._state = self._state
+        status = e._straight(distance_m, heading_rad, stop_on_stall=True)
+        if status is not None:
+            e._halt = status
+            return False
+        return not e._stalled()
+
+    def heading(self) -> float:
+        """The gyro's heading."""
+        return self._explorer._yaw_est
+
+    def halted(self) -> bool:
+        """A watchdog fired."""
+        return self._explorer._halt is not None
+
+    def follow(self, left_m: float, distance_m: float) -> bool:
+        """Follow off the axis; False on a stall or a watchdog."""
+        e = self._explorer
+        e._stall_ns = 0
+        e._state = self._state
+        status = e._follow_offset(left_m, distance_m)
+        if status is not None:
+            e._halt = status
+            return False
+        return not e._stalled()
+
+    def note(self, text: str, state: str) -> None:
+        """An event; ``state`` names what follows in the controller's log."""
+        self._explorer._event(text)
+        self._state = state
 
 
 def autonomous_run(

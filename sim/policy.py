@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 __all__ = [
     "BEHIND_RAD",
+    "BlockedExits",
     "ExitChoice",
     "ExitPolicy",
     "Junction",
@@ -80,6 +81,11 @@ class ExitPolicy(Protocol):
         """The choice at ``junction``; called once per visit, after the exit scan."""
         ...
 
+    def blocked(self, junction: Junction) -> ExitChoice:
+        """The exit last chosen at ``junction`` is blocked (the robot gave the pipe up
+        and is back there, facing as at the visit): the choice now."""
+        ...
+
 
 #: An exit within this of straight behind is the pipe the robot came in by.
 BEHIND_RAD = 0.5
@@ -90,10 +96,11 @@ def is_behind(exit_rad: float) -> bool:
     return abs(math.remainder(exit_rad - math.pi, 2.0 * math.pi)) <= BEHIND_RAD
 
 
-def right_most(exits_rad: tuple[float, ...]) -> int | None:
+def right_most(exits_rad: tuple[float, ...], excluded: frozenset[int] = frozenset()) -> int | None:
     """The index of the right-most exit that is not the way back (more than
-    :data:`BEHIND_RAD` from behind), or ``None`` when there is none (a dead end)."""
-    choices = [i for i, e in enumerate(exits_rad) if not is_behind(e)]
+    :data:`BEHIND_RAD` from behind) nor ``excluded`` (given up as blocked), or
+    ``None`` when there is none (a dead end)."""
+    choices = [i for i, e in enumerate(exits_rad) if not is_behind(e) and i not in excluded]
     if not choices:
         return None
     return min(choices, key=lambda i: math.remainder(exits_rad[i], 2.0 * math.pi))
@@ -114,6 +121,7 @@ class RightHandPolicy:
     _start: tuple[float, float] | None = None
     _returns_needed: int = 1
     _returns: int = 0
+    _blocked: BlockedExits = field(default_factory=lambda: BlockedExits())
 
     def choose(self, junction: Junction) -> ExitChoice:
         """The right-most exit, or stop back at the start."""
@@ -127,4 +135,34 @@ class RightHandPolicy:
                 self._returns += 1
                 if self._returns >= self._returns_needed:
                     return ExitChoice(stop=RunStatus.FINISHED, notes=("back at the start",))
-        return ExitChoice(exit_index=right_most(exits))
+        return self._blocked.take(junction.visit_id, right_most(exits))
+
+    def blocked(self, junction: Junction) -> ExitChoice:
+        """The next exit counter-clockwise from the blocked one (the rule's next
+        choice), or straight back when none is left."""
+        return self._blocked.next_right_most(junction)
+
+
+@dataclass
+class BlockedExits:
+    """The exits of the current visit given up as blocked, for a policy that takes
+    the right-most exit: after a blocked one, the next one counter-clockwise."""
+
+    visit_id: int = 0
+    last: int | None = None
+    given_up: frozenset[int] = frozenset()
+
+    def take(self, visit_id: int, index: int | None, notes: tuple[str, ...] = ()) -> ExitChoice:
+        """Leave visit ``visit_id`` by exit ``index`` (``None``: straight back)."""
+        if visit_id != self.visit_id:
+            self.visit_id, self.given_up = visit_id, frozenset()
+        self.last = index
+        return ExitChoice(exit_index=index, notes=notes)
+
+    def next_right_most(self, junction: Junction) -> ExitChoice:
+        """The exit taken last at ``junction`` is blocked: the right-most of the rest."""
+        if junction.visit_id == self.visit_id and self.last is not None:
+            self.given_up = self.given_up | {self.last}
+        index = right_most(junction.exits_rad, self.given_up)
+        notes = ("every other pipe is blocked: going back",) if index is None else ()
+        return self.take(junction.visit_id, index, notes)

@@ -3,8 +3,9 @@
 A 12 cm, six-wheel-leg robot (wheel diameter 28 mm) driving on the pipe floor. Full
 contact physics made T and cross turns fail in every try of a probe, so motion is
 kinematic: the commanded wheel speeds, each disturbed by slip, move the robot along
-exact arcs, and PyBullet is used for what it does well here: range rays and the
-collision check.
+exact arcs (unless the move would put its footprint into a floor deposit of
+:mod:`sim.obstacles`: then it stays and its wheels stall), and PyBullet is used for
+what it does well here: range rays and the collision check.
 
 Sensors, each with noise and its own rate, all drawn from the run's generator:
 
@@ -27,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipemap.errors import SimError
+from pipemap.sim.obstacles import footprint_hits
 from pipemap.sim.world import World
 
 __all__ = ["EncoderReading", "ImuReading", "PlanarPose", "RangeReading", "Robot", "RobotSpec"]
@@ -170,8 +172,6 @@ class Robot:
         half_track = s.track_m / 2.0
         commanded = (v_mps - omega_rps * half_track, v_mps + omega_rps * half_track)
         actual = [w * (1.0 + self._rng.normal(0.0, s.slip_std)) for w in commanded]
-        for i in (0, 1):  # encoders see the wheel turn, not the ground it covers
-            self._wheel_rad[i] += commanded[i] * dt_s / (s.wheel_diameter_m / 2.0)
         v = (actual[0] + actual[1]) / 2.0
         w = (actual[1] - actual[0]) / s.track_m
         p = self.pose
@@ -182,7 +182,17 @@ class Robot:
             yaw_end = p.yaw_rad + w * dt_s
             x = p.x_m + v / w * (math.sin(yaw_end) - math.sin(p.yaw_rad))
             y = p.y_m - v / w * (math.cos(yaw_end) - math.cos(p.yaw_rad))
-        self.pose = PlanarPose(x, y, math.remainder(p.yaw_rad + w * dt_s, 2.0 * math.pi))
+        yaw = math.remainder(p.yaw_rad + w * dt_s, 2.0 * math.pi)
+        obstacles = self.world.obstacles
+        if obstacles and footprint_hits(x, y, yaw, s.length_m, s.width_m, obstacles):
+            # Against a deposit: the body stays and the geared motors stall, so the
+            # wheels (and their encoders) stop too.
+            self._accel = (-self._speed_mps / dt_s, 0.0)
+            self._speed_mps = 0.0
+            return 0.0
+        for i in (0, 1):  # encoders see the wheel turn, not the ground it covers
+            self._wheel_rad[i] += commanded[i] * dt_s / (s.wheel_diameter_m / 2.0)
+        self.pose = PlanarPose(x, y, yaw)
         self._accel = ((v - self._speed_mps) / dt_s, v * w)
         self._speed_mps = v
         return w

@@ -23,6 +23,7 @@ __all__ = [
     "NodeDeparture",
     "NodeExits",
     "Note",
+    "PipeBlocked",
     "RecordSink",
     "SimRecord",
     "SweepEnd",
@@ -127,6 +128,18 @@ class NodeDeparture:
 
 
 @dataclass(frozen=True)
+class PipeBlocked:
+    """The robot gave up the pipe it last left visit ``visit_id``'s junction by (at
+    ``exit_rad`` from its arrival heading there): every try to get past what stalled
+    it failed. It drives back to that junction and leaves it again by another pipe
+    (a new :class:`NodeDeparture` of the same visit), without a new sweep."""
+
+    t_ns: int
+    visit_id: int
+    exit_rad: float
+
+
+@dataclass(frozen=True)
 class Note:
     """A notable event, as text (a watchdog, back at the start, a bend passed)."""
 
@@ -147,6 +160,7 @@ SimRecord = (
     | NodeArrival
     | NodeExits
     | NodeDeparture
+    | PipeBlocked
     | Note
 )
 

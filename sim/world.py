@@ -42,6 +42,7 @@ import numpy as np
 from pipemap.errors import SimError
 from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
 from pipemap.sim.network import Network
+from pipemap.sim.obstacles import Obstacle
 from pipemap.sim.textures import node_texture, pipe_texture
 from pipemap.sim.visibility import ALL, Arc, PortalGraph, frustum_arc, visible_parts
 
@@ -70,6 +71,8 @@ pybullet = _import_pybullet_quietly()
 #: wall beside the camera, so nothing nearby saturates and the far pipe fades out.
 LAMP_REFERENCE_M = 0.12
 NEAR_M = 0.005
+#: The seed stream of the deposits' textures (with the world's seed).
+_DEPOSIT_STREAM = 22
 FAR_M = 30.0
 
 
@@ -100,9 +103,17 @@ class World:
     """A pipe network in its own PyBullet client. Use as a context manager."""
 
     def __init__(
-        self, network: Network, seed: int, texture_px: int = 512, cull: bool = True
+        self,
+        network: Network,
+        seed: int,
+        texture_px: int = 512,
+        cull: bool = True,
+        obstacles: tuple[Obstacle, ...] = (),
     ) -> None:
         self.network = network
+        #: Deposits on the pipe floors (:mod:`sim.obstacles`): bodies the camera and
+        #: the rays see, and footprints the robot cannot drive into.
+        self.obstacles = tuple(obstacles)
         self.radius_m = network.diameter_m / 2.0
         #: Hide, for each image, the bodies no line of sight can reach (same image).
         self.cull = cull
@@ -117,6 +128,8 @@ class World:
         self.drawn_bodies = 0
         try:
             self._build(np.random.default_rng(seed), texture_px)
+            if self.obstacles:
+                self._build_obstacles(np.random.default_rng([seed, _DEPOSIT_STREAM]))
         except BaseException:
             self.close()
             raise
@@ -217,6 +230,30 @@ class World:
                 texture = node_texture(nrng, texture_px, texture_px, radius_m=0.2)
                 tid = self._texture(f"node-{node.label}", texture)
                 self._node_bodies[node.label].append(self._add(chamber, tid))
+
+    def _build_obstacles(self, rng: np.random.Generator) -> None:
+        """A textured box per deposit, drawn and culled with its pipe."""
+        kwargs: dict[str, Any] = {"physicsClientId": self._client}
+        for k, o in enumerate(self.obstacles):
+            # Sediment: brown, mottled, darker where wet.
+            shade = rng.uniform(0.55, 1.0, (32, 32, 1)).astype(np.float32)
+            texture = np.clip(shade * np.array([150.0, 110.0, 70.0]), 0, 255).astype(np.uint8)
+            tid = self._texture(f"deposit-{k}", cv2.resize(texture, (64, 64)))
+            half = [o.length_m / 2.0, o.width_m / 2.0, o.height_m / 2.0]
+            visual = pybullet.createVisualShape(pybullet.GEOM_BOX, halfExtents=half, **kwargs)
+            collision = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half, **kwargs)
+            body = pybullet.createMultiBody(
+                baseMass=0.0,
+                baseCollisionShapeIndex=collision,
+                baseVisualShapeIndex=visual,
+                basePosition=[o.centre_xy_m[0], o.centre_xy_m[1], o.height_m / 2.0],
+                baseOrientation=pybullet.getQuaternionFromEuler([0.0, 0.0, o.heading_rad]),
+                **kwargs,
+            )
+            pybullet.changeVisualShape(body, -1, textureUniqueId=tid, **kwargs)
+            self._pipe_bodies.setdefault((o.a, o.b), []).append(int(body))
+            self._node_bodies[o.a].append(int(body))
+            self._node_bodies[o.b].append(int(body))
 
     # -- sensing ----------------------------------------------------------------------
 

@@ -74,6 +74,7 @@ fraction = _checked(float, lambda v: 0.0 < v <= 1.0, "must be in (0, 1]")
 _fov_deg = _checked(float, lambda v: 0.0 < v < 360.0, "field of view must be in (0, 360) degrees")
 _zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (1, 2]")
 tilt_deg = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 15.0, "not in [0, 15]")
+obstacles = _checked(int, lambda v: v >= 0, "an obstacle count must be >= 0")
 highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
 
 

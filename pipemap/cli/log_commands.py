@@ -71,6 +71,13 @@ def _close_live(live: Any, err: TextIO) -> Any:
         return None
 
 
+def _obstacles_note(simulator: Any) -> str:
+    """``, N obstacles`` when the run's simulator settings put deposits in pipes."""
+    settings = simulator.get("obstacles") if isinstance(simulator, dict) else None
+    count = settings.get("count") if isinstance(settings, dict) else None
+    return f", {count} obstacles" if isinstance(count, int) and count > 0 else ""
+
+
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, run the episode while writing its log, print a summary."""
     from pipemap.cli.outputs import output_file
@@ -113,7 +120,9 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         explore=Explore(args.explore),
         lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
         tilt_rad=math.radians(args.tilt_deg),
+        obstacles=args.obstacles,
     )
+    settings.deposits(network)  # too many for the network: an error before any work
     live = None
     if args.view and not args.save:
         from pipemap.cli.view_command import live_view
@@ -262,7 +271,8 @@ def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
             f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
             f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
             f"explore {meta.get('explore', 'right-hand')}, "
-            f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images",
+            f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images"
+            + _obstacles_note(meta.get("simulator")),
             f"sweeps     {doc['sweeps']} complete in {doc['visits']} node visits"
             + (f" ({len(skipped)} skipped by a replay)" if skipped else ""),
             f"result     {result.get('status', 'none recorded')}",

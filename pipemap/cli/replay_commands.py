@@ -150,6 +150,21 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         lines.append(
             f"coverage    {cov['nodes_visited']}/{cov['nodes_total']} nodes, "
             f"{cov['pipes_traversed']}/{cov['pipes_total']} pipes"
+            + (
+                f"; reachable past blocked pipes: {cov['reachable_nodes_visited']}/"
+                f"{cov['reachable_nodes']} nodes, {cov['open_pipes_traversed']}/"
+                f"{cov['open_pipes']} open pipes"
+                if "reachable_nodes" in cov
+                else ""
+            )
+        )
+    blocked = doc.get("blocked")
+    if blocked is not None:
+        lines.append(
+            f"blocked     {len(blocked['marked'])} marked for {len(blocked['truly_blocked'])} "
+            f"truly blocked: {len(blocked['true_positives'])} right, "
+            f"{len(blocked['false_blocked'])} false, {len(blocked['missed'])} missed"
+            f" ({', '.join(blocked['marked']) or 'none marked'})"
         )
     ports = {True: "correct", False: "WRONG", None: "none (no exits in the log)"}
     lines += [

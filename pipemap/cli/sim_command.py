@@ -17,13 +17,18 @@ import re
 import shutil
 import sys
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
 from pipemap.cli.outputs import output_folder
 from pipemap.errors import InputError, WriteError
 from pipemap.imagesets import RobotNotes, write_image_set
+
+if TYPE_CHECKING:  # the simulator loads lazily: pipemap --help stays instant
+    from pipemap.sim.episode import Condition
+    from pipemap.sim.network import Network
+    from pipemap.sim.obstacles import Obstacle
 
 __all__ = ["run_sim"]
 
@@ -90,9 +95,10 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         align_sweeps=args.align_sweeps,
         tilt_rad=math.radians(args.tilt_deg),
     )
+    deposits = _deposits(args, network, condition)
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
-        return _run_autonomous(args, network, camera, target, out)
+        return _run_autonomous(args, network, camera, target, out, deposits)
     with World(network, seed=args.seed) as world:
         episode = Episode(world, config, start=args.start)
         localizer = None
@@ -123,7 +129,26 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     return 0 if tour.complete else 1
 
 
-def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  # type: ignore[no-untyped-def]
+def _deposits(
+    args: argparse.Namespace, network: Network, condition: Condition
+) -> tuple[Obstacle, ...]:
+    """The floor deposits of ``--obstacles`` (autonomous only), checked before any work."""
+    from pipemap.errors import SimError
+    from pipemap.sim.episode import Condition
+    from pipemap.sim.obstacles import place_obstacles
+
+    if args.obstacles and condition is not Condition.AUTONOMOUS:
+        raise InputError(
+            "--obstacles: only the autonomous robot drives into deposits; placed by "
+            f"hand ({condition.value}) it never meets one"
+        )
+    try:
+        return place_obstacles(network, args.obstacles, args.seed)
+    except SimError as error:
+        raise InputError(f"--obstacles {args.obstacles}: {error}") from None
+
+
+def _run_autonomous(args, network, camera, target: Path, out: TextIO, deposits=()) -> int:  # type: ignore[no-untyped-def]
     """The full exploration by the sensor-driven controller; sweeps are kept whatever
     ends it. With ``--explore map`` the localizer runs online and the robot explores
     its map; each sweep's ``sweep.txt`` then holds its exits and departure too."""
@@ -148,7 +173,7 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  #
             n = notes[record.visit_id]
             notes[record.visit_id] = RobotNotes(n.exits_rad, record.exit_rad, n.odometer_m)
 
-    with World(network, seed=args.seed) as world:
+    with World(network, seed=args.seed, obstacles=deposits) as world:
         config = ExplorerConfig(images_per_sweep=args.images, align_sweeps=args.align_sweeps)
         policy = make_policy(explore, online, config.start_radius_m, config.drift_per_m)
         result = autonomous_run(
@@ -165,13 +190,27 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO) -> int:  #
     # The robot believes it is done; the simulator knows whether it covered the network.
     covered = len(visited) == len(network.nodes) and driven == len(pipes)
     status = result.status.value
+    given_up = sum(text.startswith("pipe blocked") for _, text in result.events)
+    recovered = sum(text.startswith("stall: past it") for _, text in result.events)
+    if deposits:
+        from pipemap.recorder.session import covers
+
+        # Blocked pipes cannot be driven: what is reachable without them counts.
+        covered = covers(network, deposits, visited, path)
     if result.status is RunStatus.FINISHED and not covered:
         status = "stopped early: not every node and pipe was visited"
     out.write(
         f"network {args.network}, condition autonomous, explore {explore.value}: "
         f"{len(result.sweeps)} sweeps at {len(visited)}/{len(network.nodes)} nodes "
         f"({driven}/{len(pipes)} pipes), "
-        f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, {status}\n"
+        f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, {status}"
+        + (
+            f"; {len(deposits)} deposits: got past {recovered} stall(s), gave up "
+            f"{given_up} pipe(s) as blocked"
+            if deposits
+            else ""
+        )
+        + "\n"
     )
     return 0 if result.status is RunStatus.FINISHED and covered else 1
 

@@ -45,6 +45,14 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         "(seeded; placement conditions only; default 0, level)",
     )
     p.add_argument(
+        "--obstacles",
+        type=arguments.obstacles,
+        default=0,
+        metavar="N",
+        help="autonomous condition: floor deposits in N pipes of at least 0.9 m, drawn from "
+        "the seed, each passable (on one side) or blocking (default 0: none)",
+    )
+    p.add_argument(
         "--images",
         type=arguments.images,
         default=6,

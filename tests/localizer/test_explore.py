@@ -44,6 +44,9 @@ class Walk:
     odometer_m: float = 0.0
     #: Dead reckoning drifts east by this much per metre driven.
     drift_per_m: float = 0.0
+    #: Pipes (sorted label pairs) the robot cannot get through: it gives them up.
+    blocked_pipes: frozenset[tuple[str, str]] = frozenset()
+    gave_up: list[tuple[str, str]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.explorer = MapExplorer(self.config)
@@ -104,10 +107,24 @@ class Walk:
             assert step.port is not None and decision.exit_ports is not None
             leave = neighbours[decision.exit_ports.index(step.port)]
             self.topomap.depart(step.port)
+            while tuple(sorted((label, leave))) in self.blocked_pipes:
+                assert len(self.gave_up) < 50, "the explorer keeps choosing blocked pipes"
+                self.gave_up.append((label, leave))
+                self.topomap.block()
+                step = self.explorer.blocked(self.topomap, decision, x, node.y_m, self.odometer_m)
+                if step.stop is not None:
+                    return step.stop
+                assert step.port is not None
+                leave = neighbours[decision.exit_ports.index(step.port)]
+                self.topomap.depart(step.port)
             self.odometer_m += net.length_m(label, leave)
             heading = headings[leave]
             label = leave
         return None
+
+    def label_of_node(self, node: int) -> str:
+        """The true label of map node ``node``."""
+        return next(label for label, n in self.node_of.items() if n == node)
 
     def traversals(self) -> list[tuple[str, str]]:
         return [tuple(sorted(p)) for p in zip(self.path, self.path[1:], strict=False)]  # type: ignore[misc]
@@ -269,3 +286,64 @@ def test_the_odometry_tolerance_is_the_configured_one() -> None:
     for bad in ({"odometry_radius_m": -0.1}, {"drift_per_m": -1.0}, {"odometry_limit_m": -1.0}):
         with pytest.raises(ValueError):
             ExploreConfig(**bad)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "spec, blocked",
+    [
+        ("grid:3x3", {("r0c0", "r0c1"), ("r1c1", "r2c1")}),
+        ("paper", {("A", "B")}),  # a dead end's only pipe: B is unreachable
+        ("paper", {("C", "D"), ("C", "F")}),
+    ],
+)
+def test_a_blocked_pipe_is_never_driven_and_the_rest_is_explored(
+    spec: str, blocked: set[tuple[str, str]]
+) -> None:
+    network = build_network(spec)
+    blocked_pipes = frozenset(tuple(sorted(p)) for p in blocked)
+    walk = Walk(network, blocked_pipes=blocked_pipes)  # type: ignore[arg-type]
+    assert walk.run() is ExploreEnd.FINISHED
+    assert walk.path[-1] == walk.path[0]
+    driven = set(walk.traversals())
+    assert not driven & blocked_pipes
+    # Every pipe reachable without a blocked one is driven.
+    reach, todo = {walk.path[0]}, [walk.path[0]]
+    while todo:
+        here = todo.pop()
+        for there in network.neighbours(here):
+            if tuple(sorted((here, there))) not in blocked_pipes and there not in reach:
+                reach.add(there)
+                todo.append(there)
+    assert set(walk.path) == reach
+    assert driven == {p for p in _pipes(network) - blocked_pipes if p[0] in reach}
+    # Each blocked pipe with a reachable end is marked at that end, and given up once.
+    marked = {
+        (walk.label_of_node(n), p)
+        for n in range(walk.topomap.node_count)
+        for p in walk.topomap.blocked(n)
+    }
+    assert len(marked) == len(walk.gave_up)
+    assert {tuple(sorted(g)) for g in walk.gave_up} == {
+        p for p in blocked_pipes if p[0] in reach or p[1] in reach
+    }
+    assert walk.explorer.inconsistencies == []
+
+
+def test_a_route_goes_round_a_blocked_pipe_and_none_uses_one() -> None:
+    walk, topomap = _explored("grid:3x3")
+    direct = plan_route(topomap, 1, 2)
+    assert direct is not None
+    first = direct[0]
+    # The route's first pipe blocked at its start, as a map document says it.
+    doc = topomap.to_dict()
+    doc["nodes"][first.node]["ports"][first.leave_port]["blocked"] = True
+    topomap = TopoMap.from_dict(doc)
+    around = plan_route(topomap, 1, 2)
+    assert around is not None and around[-1].node == 2
+    assert all(
+        not topomap.is_blocked(s.node, s.leave_port)
+        and not topomap.is_blocked(s.node, s.arrive_port)
+        for s in around
+    )
+    assert route_length_m(topomap, around) > route_length_m(topomap, direct)
+    assert first.leave_port not in topomap.untraversed(first.node)

@@ -553,3 +553,53 @@ def test_not_a_document_is_refused() -> None:
     for bad in ([], "map", {"nodes": {}, "edges": []}):
         with pytest.raises(ValueError, match="map document"):
             TopoMap.from_dict(bad)
+
+
+def _left_by_a_blocked_pipe() -> TopoMap:
+    """Junction 0 (three pipes) left by port 1, which was given up; then port 2."""
+    m = TopoMap()
+    m.visit(0, (math.pi, 1.0, -1.0))
+    m.depart(1)
+    assert m.block() == 1
+    m.depart(2)
+    m.visit(1, (math.pi,), arrival_port=0)
+    return m
+
+
+def test_a_blocked_port_is_neither_untraversed_nor_joined() -> None:
+    m = _left_by_a_blocked_pipe()
+    assert m.blocked(0) == [1] and m.is_blocked(0, 1) and not m.is_blocked(0, 2)
+    assert m.untraversed(0) == [0]  # 1 blocked, 2 driven
+    assert [(e.u, e.u_port, e.v, e.v_port) for e in m.edges()] == [(0, 2, 1, 0)]
+    assert m.visit_records[0].departure_port == 2
+
+
+def test_blocking_an_unknown_departure_marks_nothing() -> None:
+    m = TopoMap()
+    m.visit(0, (math.pi, 1.0))
+    m.depart(None)
+    assert m.block() is None and m.blocked(0) == []
+    with pytest.raises(ValueError, match="no visit"):
+        TopoMap().block()
+
+
+def test_blocked_ports_are_in_the_json_and_the_graph_and_read_back() -> None:
+    m = _left_by_a_blocked_pipe()
+    doc = m.to_dict()
+    assert doc["nodes"][0]["ports"][1] == {"port": 1, "angle_rad": 1.0, "blocked": True}
+    assert "blocked" not in doc["nodes"][0]["ports"][2]
+    assert TopoMap.from_dict(json.loads(m.to_json())).blocked(0) == [1]
+    assert m.graph.nodes[0]["blocked"] == "1" and "blocked" not in m.graph.nodes[1]
+
+
+def test_a_map_without_blocked_ports_says_nothing_of_them() -> None:
+    m = TopoMap()
+    m.visit(0, (math.pi, 1.0))
+    assert "blocked" not in m.to_json()
+
+
+def test_a_bad_blocked_value_is_refused() -> None:
+    doc = _left_by_a_blocked_pipe().to_dict()
+    doc["nodes"][0]["ports"][1]["blocked"] = "yes"
+    with pytest.raises(ValueError, match="blocked"):
+        TopoMap.from_dict(doc)

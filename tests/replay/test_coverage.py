@@ -102,3 +102,55 @@ def test_a_right_map_of_part_of_the_network_is_partial(tmp_path: Path) -> None:
     wrong = replace(short, mapped_part_correct=False)
     assert wrong.map_status == "wrong"
     json.dumps(wrong.document())
+
+
+#: NETWORK with a blocking deposit between A and C and a passable one between A and B.
+BLOCKED = TrueNetwork(
+    NETWORK.positions, NETWORK.pipes, ((("A", "C"), "blocking"), (("A", "B"), "passable"))
+)
+
+
+def test_a_truly_blocked_pipe_and_what_lies_behind_it_are_not_missed() -> None:
+    assert BLOCKED.blocked_pipes == {("A", "C")}
+    assert BLOCKED.reachable("S") == {"S", "A", "B"}
+    cov = coverage_of(BLOCKED, list("SABAS"))
+    assert cov.complete  # C is reachable only through the blocked pipe
+    assert cov.document()["reachable_nodes"] == 3 and cov.document()["open_pipes"] == 2
+    assert not coverage_of(BLOCKED, list("SAS")).complete  # A-B is open
+    assert not coverage_of(NETWORK, list("SABAS")).complete  # without the deposit
+
+
+def _tee_with_marks(*blocked_ports: int) -> TopoMap:
+    """S then A (a T, ports: 0 to S, 1 to B, 2 to C) with ``blocked_ports`` given up."""
+    m = _map(clockwise_ports([math.pi, 0.0, -math.pi / 2])[0], (0, 0))
+    for port in blocked_ports:
+        m.depart(port)
+        m.block()
+    return m
+
+
+def test_blocked_marks_are_scored_against_the_truth() -> None:
+    from pipemap.replay.coverage import blocked_of
+
+    north = math.pi / 2
+    created = {0: ("S", -north), 1: ("A", north)}
+    right = blocked_of(_tee_with_marks(2), BLOCKED, created, "S")
+    assert (right.true_positives, right.false_blocked, right.missed) == ([("A", "C")], [], [])
+    assert right.correct
+    assert right.document()["marked"] == ["A-C"]
+    wrong = blocked_of(_tee_with_marks(1), BLOCKED, created, "S")  # gave up the passable one
+    assert (wrong.true_positives, wrong.false_blocked, wrong.missed) == (
+        [],
+        [("A", "B")],
+        [("A", "C")],
+    )
+    assert not wrong.correct
+    # Truly blocked but never reached (the run started behind nothing): not missed.
+    far = blocked_of(_tee_with_marks(), BLOCKED, {}, "C")
+    assert far.missed == [("A", "C")]  # C's own pipe is the blocked one: reachable
+    unreachable = TrueNetwork(
+        {**NETWORK.positions, "D": (2.0, 1.0)},
+        NETWORK.pipes | {("C", "D")},
+        ((("A", "C"), "blocking"), (("C", "D"), "blocking")),
+    )
+    assert blocked_of(_tee_with_marks(2), unreachable, created, "S").missed == []

@@ -11,7 +11,7 @@ import pytest
 from mcap.writer import Writer as McapWriter
 
 from pipemap.localizer import LocalizerConfig, dumps_document
-from pipemap.recorder import METADATA_RUN, LogWriter, Topic, read_log, schemas
+from pipemap.recorder import METADATA_RUN, LogMessage, LogWriter, Topic, read_log, schemas
 from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay import FileSource, replay
 
@@ -252,3 +252,34 @@ def test_an_active_run_makes_the_probe_moves_and_replay_answers_them_from_the_lo
         assert [p.kind for p in logged.probes] == [
             p.request.kind.value for p in ours.decision.probes
         ]
+
+
+def _node_event(t: int, kind: int, visit: int, exit_rad: float = 0.0) -> LogMessage:
+    event = schemas.NodeEvent(time_ns=t, kind=kind, visit_id=visit, exits=3, exit_rad=exit_rad)
+    return LogMessage(Topic.NODE, t, t, event.SerializeToString())
+
+
+def _blocked_event(t: int, visit: int, exit_rad: float) -> LogMessage:
+    from pipemap.recorder.messages import blocked_message
+
+    return LogMessage(Topic.EVENTS, t, t, blocked_message(t, visit, exit_rad).SerializeToString())
+
+
+def test_departures_given_up_are_told_apart_from_the_one_taken() -> None:
+    from pipemap.recorder.messages import log_message
+    from pipemap.replay.replayer import node_events_of
+
+    NodeEvent = schemas.NodeEvent
+
+    other = log_message(5, "pipe blocked: visit 1, exit 0.5 rad")  # not the blocked name
+    messages = [
+        _node_event(1, NodeEvent.DEPARTURE, 1, 0.5),
+        LogMessage(Topic.EVENTS, 5, 5, other.SerializeToString()),
+        _blocked_event(6, 1, 0.5),
+        _node_event(7, NodeEvent.DEPARTURE, 1, -1.5),
+        _node_event(9, NodeEvent.DEPARTURE, 2, 0.0),
+        _blocked_event(10, 2, 0.0),  # the run ended before it left again
+    ]
+    events = node_events_of(messages)
+    assert (events[1].blocked_rad, events[1].departure_rad) == ((0.5,), -1.5)
+    assert (events[2].blocked_rad, events[2].departure_rad) == ((0.0,), None)

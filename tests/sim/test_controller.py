@@ -202,3 +202,64 @@ def test_an_exit_heading_is_where_the_scan_sees_deepest() -> None:
     (deep,) = Explorer._openings(fake, samples, ExplorerConfig().exit_depth_fraction)  # type: ignore[arg-type]
     assert abs(lopsided - 0.6) < 0.02  # the middle of the whole opening
     assert abs(deep - 0.8) < 0.02  # the pipe's axis
+
+
+def _deposit(network, a: str, b: str, kind, side: float = 1.0):  # type: ignore[no-untyped-def]
+    """A deposit half-way along the pipe a-b: passable on the ``side`` (+1 left of the
+    axis looking from a to b) or blocking."""
+    from pipemap.sim.obstacles import PASSABLE_EDGE_M, Obstacle, ObstacleKind
+
+    na, nb = network.node(a), network.node(b)
+    heading = math.atan2(nb.y_m - na.y_m, nb.x_m - na.x_m)
+    along = network.length_m(a, b) / 2
+    if kind is ObstacleKind.BLOCKING:
+        right, left = -0.1, 0.1
+    else:
+        right, left = (PASSABLE_EDGE_M, 0.1) if side > 0 else (-0.1, -PASSABLE_EDGE_M)
+    mid = (left + right) / 2
+    centre = (
+        na.x_m + along * math.cos(heading) - mid * math.sin(heading),
+        na.y_m + along * math.sin(heading) + mid * math.cos(heading),
+    )
+    return Obstacle(a, b, kind, along, right, left, centre, heading)
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_a_passable_deposit_is_got_past_and_the_tour_goes_on(side: float) -> None:
+    from pipemap.sim.obstacles import ObstacleKind
+
+    network = build_network("paper")
+    deposit = _deposit(network, "A", "C", ObstacleKind.PASSABLE, side)
+    with World(network, seed=0, texture_px=32, obstacles=(deposit,)) as world:
+        result = autonomous_run(world, TINY, seed=1)
+    texts = [t for _, t in result.events]
+    assert result.status is RunStatus.FINISHED
+    assert any(t.startswith("stall ") for t in texts)
+    # Left of the axis from A: the robot meets it going A to C (try 3, right side
+    # free) and coming back C to A (then on its right: try 2).
+    assert sum(t.startswith("stall: past it") for t in texts) == 2
+    assert not any(t.startswith("pipe blocked") for t in texts)
+    planned = [v.node for v in right_hand_tour(network, "S").visits]
+    assert [s.true_node for s in result.sweeps] == planned
+
+
+def test_a_blocking_deposit_is_given_up_and_the_run_finishes_without_it() -> None:
+    from pipemap.sim.obstacles import ObstacleKind
+    from pipemap.sim.stream import NodeDeparture, PipeBlocked
+
+    network = build_network("paper")
+    deposit = _deposit(network, "C", "F", ObstacleKind.BLOCKING)
+    records: list[object] = []
+    with World(network, seed=0, texture_px=32, obstacles=(deposit,)) as world:
+        result = autonomous_run(world, TINY, seed=1, sink=records.append)
+    assert result.status is RunStatus.FINISHED  # the watchdog did not end it
+    blocked = [r for r in records if isinstance(r, PipeBlocked)]
+    assert len(blocked) == 1
+    # The give-up follows a departure of the same visit, and another follows it.
+    departures = [r for r in records if isinstance(r, NodeDeparture)]
+    again = [d for d in departures if d.visit_id == blocked[0].visit_id]
+    assert len(again) == 2 and again[0].exit_rad == blocked[0].exit_rad
+    swept = [s.true_node for s in result.sweeps]
+    assert "F" not in swept and set(swept) == set("SABCDE")
+    assert swept[-1] == "S"
+    assert result.duration_ns < default_time_limit_ns(network)

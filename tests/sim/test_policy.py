@@ -66,6 +66,9 @@ class Recording:
             return ExitChoice(None)
         return ExitChoice(max(ahead, key=lambda i: junction.exits_rad[i]))
 
+    def blocked(self, junction: Junction) -> ExitChoice:
+        return ExitChoice(None)
+
 
 def test_the_controller_asks_its_policy_and_stops_when_told() -> None:
     records: list[object] = []
@@ -88,3 +91,17 @@ def test_the_controller_asks_its_policy_and_stops_when_told() -> None:
     assert [r.exits_rad for r in exits] == [j.exits_rad for j in policy.seen]
     assert [d.visit_id for d in departures] == [1, 2, 3]
     assert records.index(exits[1]) < records.index(departures[1])
+
+
+def test_the_right_hand_rule_takes_the_next_exit_after_a_blocked_one() -> None:
+    policy = RightHandPolicy()
+    cross = Junction(1, (math.pi, -math.pi / 2, 0.0, math.pi / 2), 0.0, 0.0, 0.0)
+    assert policy.choose(cross).exit_index == 1  # right
+    assert policy.blocked(cross).exit_index == 2  # then straight on
+    assert policy.blocked(cross).exit_index == 3  # then left
+    back = policy.blocked(cross)
+    assert back.exit_index is None and back.notes  # then back the way it came
+    # At the next junction nothing is blocked any more.
+    tee = Junction(2, (math.pi, -math.pi / 2, math.pi / 2), 1.0, 0.0, 1.0)
+    assert policy.choose(tee).exit_index == 1
+    assert policy.blocked(tee).exit_index == 2

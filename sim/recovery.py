@@ -1,0 +1,136 @@
+"""Getting unstuck: what the explorer does when it stalls in a pipe.
+
+A stall is commanded motion with the wheels not turning (their encoders stand
+still) for :attr:`RecoveryConfig.stall_ns`: the robot has run into something it
+cannot climb (a floor deposit, :mod:`sim.obstacles`, lies below its rangers, so it
+is not seen coming). The robot then tries, at most :attr:`RecoveryConfig.tries`
+times, each try from :attr:`RecoveryConfig.back_off_m` behind where it stalled:
+
+1. back off, re-centre on the pipe's axis and drive on;
+2. back off, and drive on :attr:`RecoveryConfig.sidestep_m` left of the axis;
+3. back off, and drive on as far right of it;
+
+where the pipe's walls say where the axis is: the robot follows the pipe as it
+always does (balancing its front-left and front-right ranges, which look above
+any deposit), with the balance shifted to hold the offset. Past the stall point by
+:attr:`RecoveryConfig.pass_m` it is through, and the ordinary follower centres it
+again. When every try stalls it gives the pipe up: the controller returns to the
+junction it came from and tells its exit policy the pipe is blocked
+(:meth:`~pipemap.sim.policy.ExitPolicy.blocked`). Every step is a note in the
+robot's events. The watchdog stays the last resort: a robot that makes no progress
+for ``stuck_after_ns`` still ends the run as ``stuck``.
+
+The back-off is a straight drive backwards holding the heading by gyro, measured by
+odometry along that heading from the stall point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from pipemap.errors import SimError
+from pipemap.sim.robot import NS_PER_S
+
+__all__ = ["Driver", "RecoveryConfig", "recover"]
+
+
+@dataclass(frozen=True)
+class RecoveryConfig:
+    """How the explorer recognises a stall and tries to get past."""
+
+    #: Commanded motion with the encoders standing still this long is a stall.
+    stall_ns: int = 300_000_000
+    #: Tries before the pipe is given up: re-centre, then each side (at most 3 kinds).
+    tries: int = 3
+    #: Each try starts this far behind the stall: room for the follower to settle
+    #: on the try's offset before the deposit.
+    back_off_m: float = 0.25
+    #: The side tries hold the robot's centre this far off the axis: a passable
+    #: deposit is passed 1.5 to 5.1 cm off it (``sim.obstacles``; wall contact 5.2 cm).
+    sidestep_m: float = 0.03
+    #: A try ends (past the deposit) this far beyond the stall.
+    pass_m: float = 0.22
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.tries <= 3:
+            raise SimError(f"recovery tries must be 1..3, got {self.tries}")
+        if self.stall_ns <= 0:
+            raise SimError(f"stall time must be > 0 ns, got {self.stall_ns}")
+
+    @property
+    def stall_s(self) -> float:
+        """:attr:`stall_ns` in seconds."""
+        return self.stall_ns / NS_PER_S
+
+
+class Driver(Protocol):
+    """What :func:`recover` needs of the explorer."""
+
+    def position(self) -> np.ndarray:
+        """The robot's dead-reckoned position (x, y)."""
+        ...
+
+    def straight(self, distance_m: float, heading_rad: float) -> bool:
+        """Drive ``distance_m`` (backwards if negative) holding ``heading_rad``; False
+        when it stalled (or a watchdog fired) on the way."""
+        ...
+
+    def heading(self) -> float:
+        """The robot's heading estimate."""
+        ...
+
+    def halted(self) -> bool:
+        """A watchdog has ended the run: stop trying."""
+        ...
+
+    def follow(self, left_m: float, distance_m: float) -> bool:
+        """Follow the pipe ``left_m`` left of its axis (by the side ranges) for
+        ``distance_m``; False when it stalled (or a watchdog fired) on the way."""
+        ...
+
+    def note(self, text: str, state: str) -> None:
+        """Log ``text`` as an event; ``state`` is what the robot does next."""
+        ...
+
+
+def _behind_m(driver: Driver, stall: np.ndarray) -> float:
+    """How far ahead of ``stall`` the robot stands, along its heading."""
+    h = driver.heading()
+    d = driver.position() - stall
+    return float(math.cos(h) * d[0] + math.sin(h) * d[1])
+
+
+def recover(
+    driver: Driver, config: RecoveryConfig, stall: np.ndarray, room_m: float | None = None
+) -> bool:
+    """Try to get past what stopped the robot at ``stall``: True once past (the
+    follower then centres it again), False when every try stalled (the robot then
+    stands behind the stall point). It backs off :attr:`~RecoveryConfig.back_off_m`,
+    or ``room_m`` if that is less (it stays in the pipe, clear of the junction)."""
+    back_off = config.back_off_m if room_m is None else max(0.05, min(config.back_off_m, room_m))
+    sides = (0.0, config.sidestep_m, -config.sidestep_m)[: config.tries]
+    names = ("on the axis", "left of the axis", "right of the axis")
+    for k, side in enumerate(sides, start=1):
+        if driver.halted():
+            return False
+        back = _behind_m(driver, stall) + back_off
+        driver.note(
+            f"stall: try {k} of {len(sides)}: back off {back:.2f} m, drive {names[k - 1]}",
+            "backing off",
+        )
+        if not driver.straight(-back, driver.heading()):
+            continue
+        driver.note(f"stall: try {k}: retrying", "retrying")
+        if not driver.follow(side, back_off + config.pass_m):
+            continue
+        driver.note(f"stall: past it at try {k}", "following")
+        return True
+    if driver.halted():
+        return False
+    # Back off once more, clear of the deposit, to turn round.
+    driver.straight(-(_behind_m(driver, stall) + back_off), driver.heading())
+    return False
