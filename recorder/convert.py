@@ -207,6 +207,9 @@ class RecordConverter:
             image_count=record.image_count,
             camera_angle_rad=record.camera_angle_rad,
             fov_rad=record.fov_rad,
+            # 0.0 is not written (proto3): a level robot's logs keep their bytes.
+            imu_roll_rad=record.imu_tilt_rad[0],
+            imu_pitch_rad=record.imu_tilt_rad[1],
         )
         if record.probe is not None:
             kind, yaw, forward, left = record.probe
@@ -242,6 +245,8 @@ class RecordConverter:
                 y_m=p.y_m,
                 z_m=p.z_m,
                 yaw_rad=p.yaw_rad,
+                roll_rad=p.roll_rad,
+                pitch_rad=p.pitch_rad,
             ),
         )
         # A whole sweep is on disk before the robot moves on: a hard kill loses less.

@@ -336,7 +336,14 @@ class _PlacedRun:
         self.sink(TruePose(self.clock_ns, PlanarPose(start.x_m, start.y_m, yaw)))
         self.sink(
             SweepStart(
-                self.clock_ns, self.sweep_id, visit_id, n, sweep.camera_angle_rad, fov, probe
+                self.clock_ns,
+                self.sweep_id,
+                visit_id,
+                n,
+                sweep.camera_angle_rad,
+                fov,
+                probe,
+                sweep.imu_tilt_rad,
             )
         )
         for j, image in enumerate(sweep.images):

@@ -71,6 +71,9 @@ class LoggedSweep:
     images: ImageSet
     #: ``(kind, yaw_rad, forward_m, left_m)`` of a probe sweep, else ``None``.
     probe: tuple[str, float, float, float] | None = None
+    #: The robot's (roll, pitch) as its IMU read them during the sweep (0.0, 0.0 for a
+    #: level robot and for logs from before the log held them).
+    imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -243,8 +246,11 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
                         start.probe_forward_m,
                         start.probe_left_m,
                     )
+                tilt = (start.imu_roll_rad, start.imu_pitch_rad)
                 out.sweeps.append(
-                    LoggedSweep(command.sweep_id, start.visit_id, m.log_time_ns, images, probe)
+                    LoggedSweep(
+                        command.sweep_id, start.visit_id, m.log_time_ns, images, probe, tilt
+                    )
                 )
     if current is not None:
         out.warnings.append(f"{name}: {current.label()} was cut off by the end of the log; skipped")

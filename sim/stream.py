@@ -59,7 +59,8 @@ class SweepStart:
     """A camera sweep begins: ``image_count`` images from ``camera_angle_rad``.
 
     ``probe`` is ``(kind, yaw_rad, forward_m, left_m)`` for an active-vision probe
-    sweep, made after that move from the visit's sweep pose.
+    sweep, made after that move from the visit's sweep pose. ``imu_tilt_rad`` is the
+    robot's (roll, pitch) as its IMU reads them (see :class:`sim.episode.Sweep`).
     """
 
     t_ns: int
@@ -69,6 +70,7 @@ class SweepStart:
     camera_angle_rad: float
     fov_rad: float
     probe: tuple[str, float, float, float] | None = None
+    imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True, eq=False)

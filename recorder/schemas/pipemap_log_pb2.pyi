@@ -65,7 +65,7 @@ class ControllerState(_message.Message):
     def __init__(self, time_ns: _Optional[int] = ..., state: _Optional[str] = ..., linear_mps: _Optional[float] = ..., angular_rps: _Optional[float] = ..., heading_estimate_rad: _Optional[float] = ..., x_estimate_m: _Optional[float] = ..., y_estimate_m: _Optional[float] = ...) -> None: ...
 
 class SweepCommand(_message.Message):
-    __slots__ = ("time_ns", "phase", "sweep_id", "visit_id", "image_index", "image_count", "camera_angle_rad", "fov_rad", "probe", "probe_kind", "probe_yaw_rad", "probe_forward_m", "probe_left_m")
+    __slots__ = ("time_ns", "phase", "sweep_id", "visit_id", "image_index", "image_count", "camera_angle_rad", "fov_rad", "probe", "probe_kind", "probe_yaw_rad", "probe_forward_m", "probe_left_m", "imu_roll_rad", "imu_pitch_rad")
     class Phase(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
         __slots__ = ()
         PHASE_UNSPECIFIED: _ClassVar[SweepCommand.Phase]
@@ -89,6 +89,8 @@ class SweepCommand(_message.Message):
     PROBE_YAW_RAD_FIELD_NUMBER: _ClassVar[int]
     PROBE_FORWARD_M_FIELD_NUMBER: _ClassVar[int]
     PROBE_LEFT_M_FIELD_NUMBER: _ClassVar[int]
+    IMU_ROLL_RAD_FIELD_NUMBER: _ClassVar[int]
+    IMU_PITCH_RAD_FIELD_NUMBER: _ClassVar[int]
     time_ns: int
     phase: SweepCommand.Phase
     sweep_id: int
@@ -102,7 +104,9 @@ class SweepCommand(_message.Message):
     probe_yaw_rad: float
     probe_forward_m: float
     probe_left_m: float
-    def __init__(self, time_ns: _Optional[int] = ..., phase: _Optional[_Union[SweepCommand.Phase, str]] = ..., sweep_id: _Optional[int] = ..., visit_id: _Optional[int] = ..., image_index: _Optional[int] = ..., image_count: _Optional[int] = ..., camera_angle_rad: _Optional[float] = ..., fov_rad: _Optional[float] = ..., probe: bool = ..., probe_kind: _Optional[str] = ..., probe_yaw_rad: _Optional[float] = ..., probe_forward_m: _Optional[float] = ..., probe_left_m: _Optional[float] = ...) -> None: ...
+    imu_roll_rad: float
+    imu_pitch_rad: float
+    def __init__(self, time_ns: _Optional[int] = ..., phase: _Optional[_Union[SweepCommand.Phase, str]] = ..., sweep_id: _Optional[int] = ..., visit_id: _Optional[int] = ..., image_index: _Optional[int] = ..., image_count: _Optional[int] = ..., camera_angle_rad: _Optional[float] = ..., fov_rad: _Optional[float] = ..., probe: bool = ..., probe_kind: _Optional[str] = ..., probe_yaw_rad: _Optional[float] = ..., probe_forward_m: _Optional[float] = ..., probe_left_m: _Optional[float] = ..., imu_roll_rad: _Optional[float] = ..., imu_pitch_rad: _Optional[float] = ...) -> None: ...
 
 class NodeEvent(_message.Message):
     __slots__ = ("time_ns", "kind", "visit_id", "exits", "exit_rad", "exits_rad", "x_estimate_m", "y_estimate_m", "odometer_m")
@@ -183,7 +187,7 @@ class Decision(_message.Message):
     def __init__(self, time_ns: _Optional[int] = ..., visit_id: _Optional[int] = ..., node: _Optional[int] = ..., known: bool = ..., candidate: _Optional[int] = ..., similarity: _Optional[float] = ..., margin: _Optional[float] = ..., image_shift: _Optional[int] = ..., pixel_shift: _Optional[float] = ..., rotation_rad: _Optional[float] = ..., rotation_pinhole_rad: _Optional[float] = ..., probes: _Optional[_Iterable[_Union[ProbeResult, _Mapping]]] = ..., threshold: _Optional[float] = ..., exit_ports: _Optional[_Iterable[int]] = ..., arrival_port: _Optional[int] = ..., rejected: _Optional[_Iterable[int]] = ...) -> None: ...
 
 class TrueSweep(_message.Message):
-    __slots__ = ("time_ns", "sweep_id", "visit_id", "node", "x_m", "y_m", "z_m", "yaw_rad")
+    __slots__ = ("time_ns", "sweep_id", "visit_id", "node", "x_m", "y_m", "z_m", "yaw_rad", "roll_rad", "pitch_rad")
     TIME_NS_FIELD_NUMBER: _ClassVar[int]
     SWEEP_ID_FIELD_NUMBER: _ClassVar[int]
     VISIT_ID_FIELD_NUMBER: _ClassVar[int]
@@ -192,6 +196,8 @@ class TrueSweep(_message.Message):
     Y_M_FIELD_NUMBER: _ClassVar[int]
     Z_M_FIELD_NUMBER: _ClassVar[int]
     YAW_RAD_FIELD_NUMBER: _ClassVar[int]
+    ROLL_RAD_FIELD_NUMBER: _ClassVar[int]
+    PITCH_RAD_FIELD_NUMBER: _ClassVar[int]
     time_ns: int
     sweep_id: int
     visit_id: int
@@ -200,4 +206,6 @@ class TrueSweep(_message.Message):
     y_m: float
     z_m: float
     yaw_rad: float
-    def __init__(self, time_ns: _Optional[int] = ..., sweep_id: _Optional[int] = ..., visit_id: _Optional[int] = ..., node: _Optional[str] = ..., x_m: _Optional[float] = ..., y_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ...) -> None: ...
+    roll_rad: float
+    pitch_rad: float
+    def __init__(self, time_ns: _Optional[int] = ..., sweep_id: _Optional[int] = ..., visit_id: _Optional[int] = ..., node: _Optional[str] = ..., x_m: _Optional[float] = ..., y_m: _Optional[float] = ..., z_m: _Optional[float] = ..., yaw_rad: _Optional[float] = ..., roll_rad: _Optional[float] = ..., pitch_rad: _Optional[float] = ...) -> None: ...
