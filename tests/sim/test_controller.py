@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from pipemap.sim import CameraSpec, World, build_network, controller, right_hand_tour
+from pipemap.sim import CameraSpec, World, build_network, explorer_config, right_hand_tour
 from pipemap.sim.controller import (
     ExplorerConfig,
     RunStatus,
@@ -113,8 +113,8 @@ def test_a_run_without_a_time_limit_takes_its_network_s(
 ) -> None:
     # 60 s for the paper network's 7 m of pipe: the default run stops where an explicit
     # 60 s limit stops it (see the watchdog test), not at the floor.
-    monkeypatch.setattr(controller, "MIN_TIME_LIMIT_S", 0)
-    monkeypatch.setattr(controller, "TIME_LIMIT_S_PER_PIPE_M", 60 / 7.0)
+    monkeypatch.setattr(explorer_config, "MIN_TIME_LIMIT_S", 0)
+    monkeypatch.setattr(explorer_config, "TIME_LIMIT_S_PER_PIPE_M", 60 / 7.0)
     limit_ns = default_time_limit_ns(paper_world.network)
     assert 60 * 10**9 <= limit_ns <= 61 * 10**9
     result = autonomous_run(paper_world, TINY, seed=1)
