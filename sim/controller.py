@@ -39,7 +39,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from pipemap.sim.episode import Pose, Sweep, sweep_start_angle
 from pipemap.sim.explorer_config import (
@@ -58,6 +57,14 @@ from pipemap.sim.robot import (
     PlanarPose,
     RangeReading,
     Robot,
+)
+from pipemap.sim.scan_geometry import (
+    HALF_WIDTH_M,
+    SIDE_NOMINAL_M,
+    axes_crossing,
+    opening_headings,
+    wall_points,
+    widest_centre,
 )
 from pipemap.sim.stream import (
     ControlStep,
@@ -85,11 +92,6 @@ __all__ = [
     "default_time_limit_ns",
 ]
 
-#: Horizontal distance from the pipe axis to the wall at the rangers' height (5 cm).
-_HALF_WIDTH_M = math.sqrt(0.1**2 - 0.05**2)
-#: Side range in a straight pipe with the robot centred (rays at 40 deg, 5 cm high).
-_SIDE_NOMINAL_M = _HALF_WIDTH_M / math.sin(math.radians(40.0))
-
 
 @dataclass(frozen=True)
 class _Bend:
@@ -115,75 +117,6 @@ class _Left:
     steer: list[float]
     arrival: float
     turn_rad: float
-
-
-_CORNER_REACH_M = 0.16
-_STRAIGHT_DEG = 10.0
-
-
-def _seen(samples: list[tuple[float, float]], forward_m: float, offsets: np.ndarray) -> np.ndarray:
-    """Which ``offsets`` from the scan's centre lie inside the pipe: nearer than the
-    wall the scan saw in their direction (the sample of nearest heading)."""
-    yaws = np.array([y for y, _ in samples]) % (2.0 * math.pi)
-    reach = forward_m + np.array([r for _, r in samples])
-    order = np.argsort(yaws)
-    yaws, reach = yaws[order], reach[order]
-    bearing = np.arctan2(offsets[:, 1], offsets[:, 0]) % (2.0 * math.pi)
-    after = np.searchsorted(yaws, bearing) % len(yaws)
-    before = (after - 1) % len(yaws)
-    gap_after = np.abs(np.remainder(yaws[after] - bearing + math.pi, 2.0 * math.pi) - math.pi)
-    gap_before = np.abs(np.remainder(yaws[before] - bearing + math.pi, 2.0 * math.pi) - math.pi)
-    nearest = np.where(gap_after < gap_before, after, before)
-    inside: np.ndarray = np.linalg.norm(offsets, axis=1) < reach[nearest]
-    return inside
-
-
-def _axes_crossing(
-    samples: list[tuple[float, float]],
-    forward_m: float,
-    walls: np.ndarray,
-    here: np.ndarray,
-    guess: np.ndarray,
-    openings: list[float],
-    shallow_deg: float,
-) -> np.ndarray | None:
-    """Centre of a shallow corner: where the axes of its two pipes cross.
-
-    Every point on a pipe's axis fits a circle of the pipe's radius, so the widest
-    points of a corner's scan lie on two arms, one along each pipe. The apex fits a
-    wider circle only by ``1/cos(turn/2)``: 8 mm for a 43 degree turn, about the
-    tolerance of the scan, so the widest circle alone can settle anywhere on the
-    arms (it missed a 137 degree corner by 8 cm). Instead each arm's axis is fitted to
-    its points (their mean offset across the arm's direction) and the two axes are
-    crossed. ``None`` when the corner is sharp (the widest circle is then clear), or
-    when an arm has too few points to fit.
-    """
-    u = np.array([[math.cos(o), math.sin(o)] for o in openings])
-    turn = math.pi - abs(math.remainder(openings[0] - openings[1], 2.0 * math.pi))
-    if not math.radians(_STRAIGHT_DEG) < turn < math.radians(shallow_deg):
-        return None  # sharp, or two ends of one straight pipe (an open entry)
-    # The robot may stand well up one arm (the approach misjudged the distance), so
-    # look twice as far as the widest-circle search does for both arms.
-    offsets_m = np.arange(-_CORNER_REACH_M, _CORNER_REACH_M + 1e-9, 0.002)
-    gx, gy = np.meshgrid(offsets_m, offsets_m)
-    centres = here + np.stack([gx.ravel(), gy.ravel()], 1)
-    centres = centres[_seen(samples, forward_m, centres - here)]
-    clearance, _ = cKDTree(walls).query(centres)
-    widest = centres[clearance >= clearance.max() - 0.003]
-    normals = np.stack([-u[:, 1], u[:, 0]], axis=1)
-    across = widest @ normals.T  # (P, 2): each point's offset across either arm
-    # First guess of the arms: the direction each point lies in from the guess.
-    arm = np.argmax((widest - guess) @ u.T, axis=1)
-    offsets = np.zeros(2)
-    for _ in range(3):
-        for k in range(2):
-            if np.count_nonzero(arm == k) < 3:
-                return None
-            offsets[k] = float(np.mean(across[arm == k, k]))
-        # Then each point goes to the axis it lies nearer to, and the axes are refitted.
-        arm = np.argmin(np.abs(across - offsets), axis=1)
-    crossing: np.ndarray = np.linalg.solve(normals, offsets)
-    return crossing
 
 
 class Explorer:
@@ -306,12 +239,12 @@ class Explorer:
         spec = self.robot.spec
         candidates = []
         if front < self.config.wall_ahead_m + spec.tof_forward_m:
-            candidates.append(front + spec.tof_forward_m - _HALF_WIDTH_M)
-        if max(left, right) > self.config.opening_factor * _SIDE_NOMINAL_M:
+            candidates.append(front + spec.tof_forward_m - HALF_WIDTH_M)
+        if max(left, right) > self.config.opening_factor * SIDE_NOMINAL_M:
             # The side ray meets the wall line this far ahead of the robot; the opening
             # starts a half-width before the node centre.
-            ahead = spec.tof_forward_m + _HALF_WIDTH_M / math.tan(math.radians(40.0))
-            candidates.append(ahead + _HALF_WIDTH_M)
+            ahead = spec.tof_forward_m + HALF_WIDTH_M / math.tan(math.radians(40.0))
+            candidates.append(ahead + HALF_WIDTH_M)
         return min(candidates) if candidates else None
 
     def _follow(self) -> float | _Bend | RunStatus | _Stall:
@@ -481,25 +414,13 @@ class Explorer:
         facing = self._yaw_est
         forward = self.robot.spec.tof_forward_m
         samples = self._scan_samples()
-        points = np.array(
-            [
-                self._xy_est + (forward + r) * np.array([math.cos(y), math.sin(y)])
-                for y, r in samples
-                if r < c.scan_open_m
-            ]
-        )
+        points = wall_points(samples, self._xy_est, forward, c.scan_open_m)
         if len(points) < 8:
             return None
-        offsets = np.arange(-0.08, 0.0801, 0.002)
-        gx, gy = np.meshgrid(offsets, offsets)
-        centres = self._xy_est + np.stack([gx.ravel(), gy.ravel()], 1)
-        clearance = np.min(np.linalg.norm(centres[:, None, :] - points[None, :, :], axis=2), axis=1)
-        widest = clearance >= clearance.max() - 0.003
-        nearest = np.argmin(np.linalg.norm(centres[widest] - expected, axis=1))
-        target = centres[widest][int(nearest)]
-        openings = self._openings(samples)
+        target = widest_centre(points, self._xy_est, expected)
+        openings = opening_headings(samples, c.scan_open_m)
         if len(openings) == 2:
-            corner = _axes_crossing(
+            corner = axes_crossing(
                 samples, forward, points, self._xy_est, target, openings, c.shallow_corner_deg
             )
             if corner is not None:
@@ -543,7 +464,7 @@ class Explorer:
         front = float(np.median(fronts))
         if front > c.scan_open_m:  # open ahead: the scan's centre stands
             return None
-        error = front - (_HALF_WIDTH_M - spec.tof_forward_m)
+        error = front - (HALF_WIDTH_M - spec.tof_forward_m)
         if abs(error) < c.settle_tolerance_m:
             return None
         return self._straight(error, self._yaw_est)
@@ -551,47 +472,14 @@ class Explorer:
     def _scan(self) -> tuple[list[float], list[float]]:
         """Turn once round in place; the headings (estimated) of the exits, twice, in
         the same order: as reported (each opening's deepest samples, the pipe's axis;
-        see :meth:`_openings`) and as steered by (each opening's middle, which keeps
-        the robot clear of the mouth's walls)."""
+        see :func:`~pipemap.sim.scan_geometry.opening_headings`) and as steered by
+        (each opening's middle, which keeps the robot clear of the mouth's walls)."""
         samples = self._scan_samples()
-        return self._openings(samples, self.config.exit_depth_fraction), self._openings(samples)
-
-    def _openings(self, samples: list[tuple[float, float]], depth: float = 0.0) -> list[float]:
-        """Headings of the openings in a scan: runs of samples that see far.
-
-        Each opening's heading is the mean of its samples that see at least ``depth``
-        times as far as its farthest (all of them with 0). From a robot a few cm off
-        the junction's centre an opening's near edges are lopsided, and so is the
-        mean of all its samples (up to 0.26 rad off the pipe, measured); the deepest
-        samples look along the pipe (at most 0.11 rad off with 0.8).
-        """
         c = self.config
-        yaws = np.array([y for y, _ in samples])
-        ranges = np.array([r for _, r in samples])
-        is_open = ranges > c.scan_open_m
-        if is_open.all() or not is_open.any():
-            return []
-        # Group circularly: start from a closed sample so no opening is split in two.
-        k = int(np.argmin(is_open))
-        yaws = np.concatenate([yaws[k:], yaws[:k] + 2.0 * math.pi])
-        ranges = np.concatenate([ranges[k:], ranges[:k]])
-        is_open = np.concatenate([is_open[k:], is_open[:k]])
-        openings: list[float] = []
-        run: list[int] = []
-        for i, open_ in enumerate(is_open):
-            if open_:
-                run.append(i)
-            elif run:
-                openings.append(self._heading_of(yaws[run], ranges[run], depth))
-                run = []
-        if run:
-            openings.append(self._heading_of(yaws[run], ranges[run], depth))
-        return [math.remainder(o, 2.0 * math.pi) for o in openings]
-
-    @staticmethod
-    def _heading_of(yaws: np.ndarray, ranges: np.ndarray, depth: float) -> float:
-        deep = ranges >= depth * float(ranges.max())
-        return float(np.mean(yaws[deep]))
+        return (
+            opening_headings(samples, c.scan_open_m, c.exit_depth_fraction),
+            opening_headings(samples, c.scan_open_m),
+        )
 
     def _travel(self, origin: np.ndarray) -> float | _Bend | RunStatus | None:
         """Follow the pipe entered at ``origin`` (as :meth:`_follow`), getting past

@@ -37,8 +37,9 @@ class ExplorerConfig:
     wall_ahead_m: float = 0.12
     scan_open_m: float = 0.25
     #: An exit is reported at the mean of its opening's samples that see at least this
-    #: share as far as the farthest (see :meth:`Explorer._openings`); the robot steers
-    #: by the mean of all of them.
+    #: share as far as the farthest (see
+    #: :func:`~pipemap.sim.scan_geometry.opening_headings`); the robot steers by the
+    #: mean of all of them.
     exit_depth_fraction: float = 0.8
     sweep_step_ns: int = 500_000_000
     images_per_sweep: int = 6
@@ -63,7 +64,8 @@ class ExplorerConfig:
     settle_tolerance_m: float = 0.003
     settle_clear_deg: float = 80.0
     #: A corner whose pipes turn by less than this is centred where their axes cross
-    #: (see :func:`_axes_crossing`); a sharper one by its widest circle alone.
+    #: (see :func:`~pipemap.sim.scan_geometry.axes_crossing`); a sharper one by its
+    #: widest circle alone.
     shallow_corner_deg: float = 70.0
     #: A bend passed while following: the heading turned by more than ``bend_deg``
     #: over ``bend_window_m`` and held within ``bend_settle_deg`` over ``bend_settle_m``.
