@@ -1,0 +1,161 @@
+"""What the explorer does at a node: sweep the camera, scan for exits, re-centre.
+
+Arrived at a node, the robot re-centres (:func:`recentre`: a scan, then the widest
+circle among the walls it saw or, at a shallow corner, the crossing of the pipes'
+axes; against a wall ahead it settles by the front range,
+:func:`settle_on_wall_ahead`), sweeps the camera (:func:`sweep`) and scans once
+more for the exits (:func:`scan`). The geometry is in :mod:`sim.scan_geometry`;
+these act on a :class:`~pipemap.sim.motion.Motion`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from pipemap.sim.episode import Pose, Sweep, sweep_start_angle
+from pipemap.sim.motion import Motion
+from pipemap.sim.policy import RunStatus
+from pipemap.sim.robot import PlanarPose, RangeReading
+from pipemap.sim.scan_geometry import (
+    HALF_WIDTH_M,
+    axes_crossing,
+    opening_headings,
+    wall_points,
+    widest_centre,
+)
+from pipemap.sim.stream import NodeArrival, SweepEnd, SweepImage, SweepStart
+from pipemap.sim.world import CameraSpec
+
+__all__ = ["recentre", "scan", "scan_samples", "settle_on_wall_ahead", "sweep"]
+
+
+def sweep(m: Motion, camera: CameraSpec, true_node_of: Callable[[PlanarPose], str] | None) -> None:
+    """Sweep the camera: ``images_per_sweep`` images, clockwise, from the multiple of
+    ``2*pi/N`` nearest the heading estimate; the robot stands still meanwhile. The
+    sweep is labelled by ``true_node_of`` (ground truth, for scoring only)."""
+    c = m.config
+    m.state = "sweeping"
+    pose = m.robot.pose
+    n = c.images_per_sweep
+    number = len(m.result.sweeps) + 1  # one sweep per visit: the same number
+    angle = sweep_start_angle(m.yaw_est, n, c.align_sweeps)
+    first = pose.yaw_rad + angle  # where the camera truly points: the robot's true yaw
+    sink = m.sink
+    if sink is not None:
+        sink(NodeArrival(m.robot.t_ns, number))
+        sink(SweepStart(m.robot.t_ns, number, number, n, angle, camera.fov_rad))
+    images = []
+    for j in range(n):
+        step = j * 2.0 * math.pi / n
+        eye = (pose.x_m + 1.3e-4, pose.y_m + 0.7e-4, c.camera_height_m)
+        images.append(m.robot.world.render(eye, first - step, camera))
+        if sink is not None:
+            sink(SweepImage(m.robot.t_ns, number, number, j, angle - step, images[-1]))
+        m.drive(0.0, 0.0, c.sweep_step_ns)  # the camera motor turns; the robot waits
+    truth = true_node_of(pose) if true_node_of is not None else ""
+    start = Pose(pose.x_m, pose.y_m, c.camera_height_m, 0.0, 0.0, first)
+    taken = Sweep(np.stack(images), start, str(truth), camera_angle_rad=angle)
+    m.result.sweeps.append(taken)
+    m.event(f"sweep {number}")
+    if sink is not None:
+        sink(SweepEnd(m.robot.t_ns, number, number, taken))
+
+
+def scan_samples(m: Motion) -> list[tuple[float, float]]:
+    """Turn once round in place: (estimated heading, front range) pairs."""
+    c = m.config
+    m.state = "scanning"
+    samples: list[tuple[float, float]] = []
+    start = m.yaw_est
+    while m.yaw_est - start < 2.0 * math.pi:
+        m.drive(0.0, c.turn_rate_rps, c.control_period_ns)
+        samples.append((m.yaw_est, m.ranges[0]))
+        if m.stalled():  # cannot turn: the watchdog ends the run later
+            break
+    m.turn_to(start)
+    return samples
+
+
+def scan(m: Motion) -> tuple[list[float], list[float]]:
+    """Turn once round in place; the headings (estimated) of the exits, twice, in
+    the same order: as reported (each opening's deepest samples, the pipe's axis;
+    see :func:`~pipemap.sim.scan_geometry.opening_headings`) and as steered by
+    (each opening's middle, which keeps the robot clear of the mouth's walls)."""
+    samples = scan_samples(m)
+    c = m.config
+    return (
+        opening_headings(samples, c.scan_open_m, c.exit_depth_fraction),
+        opening_headings(samples, c.scan_open_m),
+    )
+
+
+def recentre(m: Motion, expected: np.ndarray) -> RunStatus | None:
+    """Move to the node centre found from a range scan, then face as before.
+
+    The centre is where the largest circle fits among the wall points seen
+    (a 2 mm grid within 8 cm): the junction's walls all keep the pipe radius
+    from it, and openings hold no points to pull it off. Along a pipe's axis
+    every point fits as wide a circle; among those ties the one nearest to
+    where the approach expected the centre wins.
+    """
+    c = m.config
+    m.state = "recentring"
+    facing = m.yaw_est
+    forward = m.robot.spec.tof_forward_m
+    samples = scan_samples(m)
+    points = wall_points(samples, m.xy_est, forward, c.scan_open_m)
+    if len(points) < 8:
+        return None
+    target = widest_centre(points, m.xy_est, expected)
+    openings = opening_headings(samples, c.scan_open_m)
+    if len(openings) == 2:
+        corner = axes_crossing(
+            samples, forward, points, m.xy_est, target, openings, c.shallow_corner_deg
+        )
+        if corner is not None:
+            target = corner
+    move = target - m.xy_est
+    distance = float(np.linalg.norm(move))
+    if distance > 0.01:
+        heading = math.atan2(move[1], move[0])
+        m.turn_to(heading)
+        status = m.straight(distance, heading)
+        if status is not None:
+            return status
+    m.turn_to(facing)
+    # Settle only where the wall ahead is square to the heading: no opening within
+    # 80 degrees of it (a dead end, a right-angle corner or T), not at a Y or a
+    # sharp corner, whose walls ahead stand at other distances.
+    clear = math.radians(c.settle_clear_deg)
+    if all(abs(math.remainder(o - facing, 2.0 * math.pi)) > clear for o in openings):
+        return settle_on_wall_ahead(m)
+    return None
+
+
+def settle_on_wall_ahead(m: Motion) -> RunStatus | None:
+    """With a wall straight ahead, stand where the front range puts the node centre.
+
+    The scan cannot tell where along the arrival pipe the centre lies when that
+    pipe ends in a wall: a dead end's cap, a right-angle corner's outer wall, the
+    far wall of a T entered by its stem. That wall is the pipe's radius from the centre, so
+    the front ranger then reads a known distance; standing there makes two visits
+    of such a node sweep from the same place.
+    """
+    c = m.config
+    spec = m.robot.spec
+    m.state = "settling"
+    start = len(m.result.readings)
+    m.drive(0.0, 0.0, c.settle_ns)
+    fronts = [r.ranges_m[0] for r in m.result.readings[start:] if isinstance(r, RangeReading)]
+    if not fronts:
+        return None
+    front = float(np.median(fronts))
+    if front > c.scan_open_m:  # open ahead: the scan's centre stands
+        return None
+    error = front - (HALF_WIDTH_M - spec.tof_forward_m)
+    if abs(error) < c.settle_tolerance_m:
+        return None
+    return m.straight(error, m.yaw_est)
