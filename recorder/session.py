@@ -157,7 +157,9 @@ class RecordSettings:
 
     def _explorer(self) -> ExplorerConfig:
         return ExplorerConfig(
-            images_per_sweep=self.images_per_sweep, align_sweeps=self.align_sweeps
+            images_per_sweep=self.images_per_sweep,
+            align_sweeps=self.align_sweeps,
+            tilt_rad=self.tilt_rad,
         )
 
     def _sim_config(self) -> SimConfig:

@@ -47,6 +47,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from pipemap.sim.episode import TILT_STREAM
 from pipemap.sim.explorer_config import (
     MIN_TIME_LIMIT_S,
     TIME_LIMIT_S_PER_PIPE_M,
@@ -89,8 +90,11 @@ class Explorer:
         sink: RecordSink | None = None,
         policy: ExitPolicy | None = None,
         recovery: RecoveryConfig | None = None,
+        tilt_rng: np.random.Generator | None = None,
     ) -> None:
         self.robot = robot
+        #: Draws the robot's tilt at each junction (``ExplorerConfig.tilt_rad``).
+        self._tilt_rng = tilt_rng
         self.recovery = recovery if recovery is not None else RecoveryConfig()
         self.camera = camera
         self.config = config if config is not None else ExplorerConfig()
@@ -104,6 +108,17 @@ class Explorer:
         # Ground truth only labels the sweeps for scoring; no decision reads it.
         self._true_node_of = true_node_of
         self.motion = Motion(robot, self.config, self.recovery, sink, self.time_limit_ns)
+
+    def _tilt(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The robot's (roll, pitch) at this junction, and its IMU's reading of them."""
+        c = self.config
+        rng = self._tilt_rng
+        if c.tilt_rad <= 0.0 or rng is None:
+            return (0.0, 0.0), (0.0, 0.0)
+        roll, pitch = (float(v) for v in rng.uniform(-1.0, 1.0, 2) * c.tilt_rad)
+        noise = c.imu_tilt_noise_rad
+        imu = (roll + float(rng.normal(0.0, noise)), pitch + float(rng.normal(0.0, noise)))
+        return (roll, pitch), imu
 
     def run(self) -> ExplorationResult:
         """Explore until the policy stops the run, or the watchdog does.
@@ -133,7 +148,7 @@ class Explorer:
                 choice = choose_again(m, self.policy, returning)
                 returning = None
             else:
-                sweep(m, self.camera, self._true_node_of)
+                sweep(m, self.camera, self._true_node_of, *self._tilt())
                 exits, steer = scan(m)
                 relative = tuple(math.remainder(e - arrival, 2.0 * math.pi) for e in exits)
                 x, y = (float(v) for v in m.xy_est)
@@ -230,5 +245,8 @@ def autonomous_run(
         off = math.hypot(nearest.x_m - pose.x_m, nearest.y_m - pose.y_m)
         return nearest.label if off < 0.15 else "?"
 
-    explorer = Explorer(robot, camera, config, true_node_of=true_node, sink=sink, policy=policy)
+    tilts = np.random.default_rng([seed, TILT_STREAM])  # a level run draws nothing from it
+    explorer = Explorer(
+        robot, camera, config, true_node_of=true_node, sink=sink, policy=policy, tilt_rng=tilts
+    )
     return explorer.run()

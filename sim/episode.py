@@ -38,7 +38,7 @@ from pipemap.sim.plan import right_hand_tour
 from pipemap.sim.world import CameraSpec, World
 
 #: The seed stream of the robot's tilt (with the run's seed).
-_TILT_STREAM = 20
+TILT_STREAM = 20
 
 __all__ = ["Condition", "Episode", "Pose", "SimConfig", "Sweep", "Visit", "sweep_start_angle"]
 
@@ -162,7 +162,7 @@ class Episode:
         self.tour = right_hand_tour(self.network, start)
         self._rng = np.random.default_rng(config.seed)
         # Tilts draw from their own stream: a level run's placements stay as they were.
-        self._tilt_rng = np.random.default_rng([config.seed, _TILT_STREAM])
+        self._tilt_rng = np.random.default_rng([config.seed, TILT_STREAM])
 
     def _sweep(self, node: str, pose: Pose) -> Sweep:
         n = self.config.images_per_sweep

@@ -48,6 +48,14 @@ class ExplorerConfig:
     #: Standing still this long at the start measures the gyro's bias.
     calibrate_ns: int = 2 * NS_PER_S
     camera_height_m: float = 0.05
+    #: The robot off level: at each junction its roll and pitch are drawn within
+    #: +-``tilt_rad`` (floor deposits, a pipe's curvature; seeded, from a stream of
+    #: their own, so a level run is what it was), the camera sweeps from the tilted
+    #: body, and the IMU reads the tilt with ``imu_tilt_noise_rad`` of noise (logged
+    #: with the sweep). The drive and the range sensors stay planar. As
+    #: ``SimConfig.tilt_rad`` of the placement conditions.
+    tilt_rad: float = 0.0
+    imu_tilt_noise_rad: float = 0.002
     #: The right-hand policy's stop (:class:`~pipemap.sim.policy.RightHandPolicy`).
     #: Nodes are at least 3 pipe diameters (0.6 m) apart, so the start is looked for
     #: within less than that.

@@ -32,10 +32,17 @@ from pipemap.sim.world import CameraSpec
 __all__ = ["recentre", "scan", "scan_samples", "settle_on_wall_ahead", "sweep"]
 
 
-def sweep(m: Motion, camera: CameraSpec, true_node_of: Callable[[PlanarPose], str] | None) -> None:
+def sweep(
+    m: Motion,
+    camera: CameraSpec,
+    true_node_of: Callable[[PlanarPose], str] | None,
+    tilt_rad: tuple[float, float] = (0.0, 0.0),
+    imu_tilt_rad: tuple[float, float] = (0.0, 0.0),
+) -> None:
     """Sweep the camera: ``images_per_sweep`` images, clockwise, from the multiple of
     ``2*pi/N`` nearest the heading estimate; the robot stands still meanwhile. The
-    sweep is labelled by ``true_node_of`` (ground truth, for scoring only)."""
+    sweep is labelled by ``true_node_of`` (ground truth, for scoring only). A robot
+    off level stands at ``tilt_rad`` (roll, pitch) and its IMU reads ``imu_tilt_rad``."""
     c = m.config
     m.state = "sweeping"
     pose = m.robot.pose
@@ -46,18 +53,25 @@ def sweep(m: Motion, camera: CameraSpec, true_node_of: Callable[[PlanarPose], st
     sink = m.sink
     if sink is not None:
         sink(NodeArrival(m.robot.t_ns, number))
-        sink(SweepStart(m.robot.t_ns, number, number, n, angle, camera.fov_rad))
+        sink(SweepStart(m.robot.t_ns, number, number, n, angle, camera.fov_rad, None, imu_tilt_rad))
+    roll, pitch = tilt_rad
     images = []
     for j in range(n):
         step = j * 2.0 * math.pi / n
         eye = (pose.x_m + 1.3e-4, pose.y_m + 0.7e-4, c.camera_height_m)
-        images.append(m.robot.world.render(eye, first - step, camera))
+        if roll == 0.0 and pitch == 0.0:
+            images.append(m.robot.world.render(eye, first - step, camera))
+        else:
+            world = m.robot.world
+            images.append(world.render_tilted(eye, pose.yaw_rad, angle - step, roll, pitch, camera))
         if sink is not None:
             sink(SweepImage(m.robot.t_ns, number, number, j, angle - step, images[-1]))
         m.drive(0.0, 0.0, c.sweep_step_ns)  # the camera motor turns; the robot waits
     truth = true_node_of(pose) if true_node_of is not None else ""
-    start = Pose(pose.x_m, pose.y_m, c.camera_height_m, 0.0, 0.0, first)
-    taken = Sweep(np.stack(images), start, str(truth), camera_angle_rad=angle)
+    start = Pose(pose.x_m, pose.y_m, c.camera_height_m, roll, pitch, first)
+    taken = Sweep(
+        np.stack(images), start, str(truth), camera_angle_rad=angle, imu_tilt_rad=imu_tilt_rad
+    )
     m.result.sweeps.append(taken)
     m.event(f"sweep {number}")
     if sink is not None:

@@ -85,11 +85,6 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
 
-    if args.tilt_deg > 0.0 and args.condition == "autonomous":
-        raise InputError(
-            "--tilt-deg: the autonomous robot stands level for now; tilt it in a "
-            "placement condition (perfect, noise, active, entrance)"
-        )
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)

@@ -73,11 +73,6 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
 
-    if args.tilt_deg > 0.0 and args.condition == "autonomous":
-        raise InputError(
-            "--tilt-deg: the autonomous robot stands level for now; tilt it in a "
-            "placement condition (perfect, noise, active, entrance)"
-        )
     target = output_folder(args.save_sweeps, "--save-sweeps", args.force)
     network = build_network(args.network, seed=args.seed)
     condition = Condition(args.condition)
@@ -174,7 +169,11 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO, deposits=(
             notes[record.visit_id] = RobotNotes(n.exits_rad, record.exit_rad, n.odometer_m)
 
     with World(network, seed=args.seed, obstacles=deposits) as world:
-        config = ExplorerConfig(images_per_sweep=args.images, align_sweeps=args.align_sweeps)
+        config = ExplorerConfig(
+            images_per_sweep=args.images,
+            align_sweeps=args.align_sweeps,
+            tilt_rad=math.radians(args.tilt_deg),
+        )
         policy = make_policy(explore, online, config.start_radius_m, config.drift_per_m)
         result = autonomous_run(
             world, camera, args.seed, start=args.start, config=config, sink=sink, policy=policy

@@ -42,7 +42,7 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         default=0.0,
         metavar="DEG",
         help="the robot off level: roll and pitch drawn at each junction within +-DEG "
-        "(seeded; placement conditions only; default 0, level)",
+        "(seeded; the IMU's reading is logged with each sweep; default 0, level)",
     )
     p.add_argument(
         "--obstacles",

@@ -73,9 +73,9 @@ def test_tilt_settings_are_checked() -> None:
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["sim", "--condition", "autonomous", "--tilt-deg", "3"], "--tilt-deg"),
-        (["record", "--tilt-deg", "3"], "--tilt-deg"),
         (["sim", "--tilt-deg", "20"], "--tilt-deg"),
+        (["record", "--tilt-deg", "-1"], "--tilt-deg"),
+        (["record", "--tilt-deg", "nan"], "--tilt-deg"),
     ],
 )
 def test_the_command_line_refuses_a_tilt_it_cannot_simulate(
