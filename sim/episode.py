@@ -87,12 +87,17 @@ class SimConfig:
     def __post_init__(self) -> None:
         if self.images_per_sweep < 1:
             raise SimError(f"images per sweep must be >= 1, got {self.images_per_sweep}")
-        if not 0.0 <= self.tilt_rad <= 0.3:
-            raise SimError(f"tilt must be in [0, 0.3] rad, got {self.tilt_rad}")
-        if not self.imu_tilt_noise_rad >= 0.0:
-            raise SimError(f"IMU tilt noise must be >= 0 rad, got {self.imu_tilt_noise_rad}")
+        check_tilt(self.tilt_rad, self.imu_tilt_noise_rad)
         if self.noise_offset_m < 0 or self.entrance_slip < 0:
             raise SimError("noise offset and slip must be >= 0")
+
+
+def check_tilt(tilt_rad: float, imu_tilt_noise_rad: float) -> None:
+    """The robot off level, placed or exploring: a tilt in [0, 0.3] rad, IMU noise >= 0."""
+    if not 0.0 <= tilt_rad <= 0.3:
+        raise SimError(f"tilt must be in [0, 0.3] rad, got {tilt_rad}")
+    if not imu_tilt_noise_rad >= 0.0:
+        raise SimError(f"IMU tilt noise must be >= 0 rad, got {imu_tilt_noise_rad}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from pipemap.sim.episode import Sweep
+from pipemap.sim.episode import Sweep, check_tilt
 from pipemap.sim.network import Network
 from pipemap.sim.policy import RunStatus
 from pipemap.sim.robot import NS_PER_S, Reading
@@ -85,6 +85,9 @@ class ExplorerConfig:
     #: Simulated time after which the run stops (``RunStatus.TIME_LIMIT``); None:
     #: :func:`default_time_limit_ns` of the world's network, which grows with it.
     time_limit_ns: int | None = None
+
+    def __post_init__(self) -> None:
+        check_tilt(self.tilt_rad, self.imu_tilt_noise_rad)
 
 
 #: The shortest default time limit, and the simulated time allowed per metre of pipe

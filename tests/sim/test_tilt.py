@@ -10,6 +10,7 @@ import pytest
 from pipemap.cli import main
 from pipemap.errors import SimError
 from pipemap.sim import CameraSpec, Condition, Episode, SimConfig, World, build_network
+from pipemap.sim.explorer_config import ExplorerConfig
 from pipemap.sim.world import body_rotation
 
 SMALL = CameraSpec(resolution_px=48)
@@ -63,11 +64,13 @@ def test_tilts_are_seeded_bounded_and_reported_by_the_imu(paper_world) -> None: 
     assert not np.array_equal(one[1].sweep.images, level[1].sweep.images)
 
 
-def test_tilt_settings_are_checked() -> None:
+@pytest.mark.parametrize("config", [SimConfig, ExplorerConfig])
+def test_tilt_settings_are_checked(config: type) -> None:
     with pytest.raises(SimError):
-        SimConfig(tilt_rad=0.5)
+        config(tilt_rad=0.5)
     with pytest.raises(SimError):
-        SimConfig(imu_tilt_noise_rad=-1.0)
+        config(imu_tilt_noise_rad=-1.0)
+    assert config(tilt_rad=0.3).tilt_rad == 0.3
 
 
 @pytest.mark.parametrize(
