@@ -25,10 +25,10 @@ if TYPE_CHECKING:
     from pipemap.recorder.session import (
         Progress,
         RecordResult,
-        RecordSettings,
         RunObserver,
         record_run,
     )
+    from pipemap.recorder.settings import RecordSettings
     from pipemap.recorder.writer import LogWriter
 
 #: Loaded on first use (PEP 562): recording pulls in the simulator, which a command
@@ -39,7 +39,7 @@ _LAZY = {
     "OnlineLocalizer": "pipemap.recorder.online",
     "Progress": "pipemap.recorder.session",
     "RecordResult": "pipemap.recorder.session",
-    "RecordSettings": "pipemap.recorder.session",
+    "RecordSettings": "pipemap.recorder.settings",
     "RunObserver": "pipemap.recorder.session",
     "record_run": "pipemap.recorder.session",
     "LogWriter": "pipemap.recorder.writer",

@@ -26,11 +26,11 @@ import threading
 import traceback
 from collections.abc import Mapping
 from pathlib import Path
-from types import TracebackType
 from typing import Any, BinaryIO, cast
 
 from pipemap.errors import InputError, WriteError
 from pipemap.recorder.convert import LogRecord, RecordConverter
+from pipemap.recorder.inline import FinishesOnExit
 from pipemap.recorder.writer import LogWriter
 
 __all__ = ["BackgroundWriter", "writer_main"]
@@ -137,7 +137,7 @@ def _write(
     return 0
 
 
-class BackgroundWriter:
+class BackgroundWriter(FinishesOnExit):
     """Writes a log at ``path`` in a writer process. Use as a context manager.
 
     ``mode`` is ``"xb"`` (never overwrite) or ``"wb"``. On leaving the block by an
@@ -242,24 +242,3 @@ class BackgroundWriter:
             raise RuntimeError(f"the log writer failed:\n{detail}")
         self.messages = int(detail)
         return self.messages
-
-    def __enter__(self) -> BackgroundWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        if self._finished:
-            return
-        if exc_type is None:
-            self.finish({"status": "finished"})
-            return
-        reason = "interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed"
-        try:
-            self.finish({"status": reason, "error": f"{exc_type.__name__}: {exc}"[:500]})
-        except Exception:
-            # The writer cannot be told: closing the pipe makes it finish the log itself.
-            self._close()

@@ -20,17 +20,13 @@ to drive each pipe at its cruising speed.
 
 from __future__ import annotations
 
-import dataclasses
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
-from pipemap.errors import InputError, SimError
+from pipemap.errors import InputError
 from pipemap.localizer import (
-    DEFAULT_THRESHOLD,
     Decision,
     ImageSet,
     Localizer,
@@ -40,14 +36,15 @@ from pipemap.localizer import (
 from pipemap.recorder import messages
 from pipemap.recorder.background import BackgroundWriter
 from pipemap.recorder.convert import LogRecord, ReadyMessage, SweepDone
-from pipemap.recorder.online import Explore, NoProbes, OnlineLocalizer, gray_set, make_policy
-from pipemap.recorder.topics import FORMAT_VERSION, Topic
+from pipemap.recorder.inline import InlineWriter, RecordWriter
+from pipemap.recorder.online import NoProbes, OnlineLocalizer, gray_set, make_policy
+from pipemap.recorder.settings import RecordSettings
+from pipemap.recorder.topics import Topic
 from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
-from pipemap.sim.episode import Condition, Episode, SimConfig, Sweep, Visit
+from pipemap.sim.episode import Condition, Episode, Sweep, Visit
 from pipemap.sim.network import Network
-from pipemap.sim.obstacles import Obstacle, ObstacleKind, place_obstacles
-from pipemap.sim.recovery import RecoveryConfig
-from pipemap.sim.robot import PlanarPose, RobotSpec
+from pipemap.sim.obstacles import Obstacle, ObstacleKind
+from pipemap.sim.robot import PlanarPose
 from pipemap.sim.stream import (
     NodeArrival,
     NodeDeparture,
@@ -74,111 +71,6 @@ _NS_PER_S = 1_000_000_000
 _SWEEP_STEP_NS = 500_000_000
 _PROBE_MOVE_NS = 2 * _NS_PER_S
 _CRUISE_MPS = ExplorerConfig().speed_mps
-
-
-@dataclass(frozen=True)
-class RecordSettings:
-    """What to run: the network, the start, the seed, the condition, the camera."""
-
-    network: str
-    start: str | None = None
-    seed: int = 0
-    condition: Condition = Condition.AUTONOMOUS
-    resolution_px: int = 400
-    images_per_sweep: int = 6
-    align_sweeps: bool = True
-    threshold: float = DEFAULT_THRESHOLD
-    #: How the autonomous robot chooses exits (placed tours follow the paper's rule).
-    explore: Explore = Explore.MAP
-    #: The robot's lamp relative to full; 0.0 lights every surface evenly.
-    lamp_strength: float = 1.0
-    #: The robot off level (placement conditions): see ``SimConfig.tilt_rad``.
-    tilt_rad: float = 0.0
-    #: Floor deposits in as many pipes, drawn from the seed (autonomous condition):
-    #: see :mod:`sim.obstacles`. 0: none, and the log is as without the setting.
-    obstacles: int = 0
-
-    def __post_init__(self) -> None:
-        if self.obstacles < 0:
-            raise InputError(f"--obstacles must be >= 0, got {self.obstacles}")
-        if self.obstacles and self.condition is not Condition.AUTONOMOUS:
-            raise InputError(
-                "--obstacles: only the autonomous robot drives into deposits; placed by "
-                f"hand ({self.condition.value}) it never meets one"
-            )
-
-    def deposits(self, network: Network) -> tuple[Obstacle, ...]:
-        """The run's floor deposits (none by default)."""
-        try:
-            return place_obstacles(network, self.obstacles, self.seed)
-        except SimError as error:
-            raise InputError(f"--obstacles {self.obstacles}: {error}") from None
-
-    def camera(self) -> CameraSpec:
-        """The camera of the run."""
-        return CameraSpec(resolution_px=self.resolution_px, lamp_strength=self.lamp_strength)
-
-    def metadata(self, network: Network, version: str) -> dict[str, str]:
-        """The ``pipemap.run`` metadata record: strings only, deterministic."""
-        camera = self.camera()
-        simulator: dict[str, Any] = {
-            "robot": dataclasses.asdict(RobotSpec()),
-            "camera": dataclasses.asdict(camera),
-        }
-        if self.condition is Condition.AUTONOMOUS:
-            simulator["explorer"] = dataclasses.asdict(self._explorer())
-            if self.obstacles:
-                # Only with deposits: a log without them stays as it always was.
-                simulator["obstacles"] = {
-                    "count": self.obstacles,
-                    "recovery": dataclasses.asdict(RecoveryConfig()),
-                }
-        else:
-            simulator["placement"] = dataclasses.asdict(self._sim_config())
-            simulator["placement"].pop("camera")
-            simulator["placement"]["condition"] = self.condition.value
-        return {
-            "format_version": FORMAT_VERSION,
-            "pipemap_version": version,
-            "network": self.network,
-            "seed": str(self.seed),
-            "condition": self.condition.value,
-            "start": self.start if self.start is not None else network.entry,
-            "resolution_px": str(self.resolution_px),
-            "images_per_sweep": str(self.images_per_sweep),
-            "fov_rad": repr(camera.fov_rad),
-            "align_sweeps": "true" if self.align_sweeps else "false",
-            "threshold": repr(self.threshold),
-            "explore": self.explore.value
-            if self.condition is Condition.AUTONOMOUS
-            else Explore.RIGHT_HAND.value,
-            "simulator": json.dumps(simulator, sort_keys=True, default=_json_value),
-        }
-
-    def _explorer(self) -> ExplorerConfig:
-        return ExplorerConfig(
-            images_per_sweep=self.images_per_sweep,
-            align_sweeps=self.align_sweeps,
-            tilt_rad=self.tilt_rad,
-        )
-
-    def _sim_config(self) -> SimConfig:
-        return SimConfig(
-            condition=self.condition,
-            seed=self.seed,
-            camera=self.camera(),
-            images_per_sweep=self.images_per_sweep,
-            align_sweeps=self.align_sweeps,
-            tilt_rad=self.tilt_rad,
-        )
-
-
-def _json_value(value: object) -> object:
-    if isinstance(value, tuple):
-        return list(value)
-    if hasattr(value, "value"):
-        return value.value  # enums
-    raise TypeError(f"not JSON: {value!r}")
 
 
 @dataclass(frozen=True)
@@ -226,7 +118,7 @@ class _OnlineSink:
 
     def __init__(
         self,
-        writer: BackgroundWriter,
+        writer: RecordWriter,
         localizer: Localizer,
         camera: CameraSpec,
         progress: Callable[[Progress], None] | None,
@@ -355,7 +247,7 @@ class _PlacedRun:
         self.sink(SweepEnd(self.clock_ns, self.sweep_id, visit_id, sweep))
 
     def run(self) -> str:
-        episode = Episode(self.world, self.settings._sim_config(), start=self.settings.start)
+        episode = Episode(self.world, self.settings.sim_config(), start=self.settings.start)
         network = self.world.network
         previous: str | None = None
         for visit in episode.visits():
@@ -429,6 +321,7 @@ def record_run(
     progress: Callable[[Progress], None] | None = None,
     overwrite: bool = False,
     observer: RunObserver | None = None,
+    inline: bool = False,
 ) -> RecordResult:
     """Run ``settings`` on ``network`` and write its log to ``path``.
 
@@ -436,6 +329,8 @@ def record_run(
     its result metadata says so and the exception propagates. Without
     ``overwrite`` an existing file is never touched. ``observer``, if given, sees
     every record as the log gets it (a live view); the log is the same without it.
+    ``inline`` writes the log in this process rather than a writer process (for runs
+    that share the cores, see :mod:`recorder.inline`): the same bytes.
     """
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
@@ -444,14 +339,15 @@ def record_run(
     localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
     deposits = settings.deposits(network)  # checked before the log is opened
     mode = "wb" if overwrite else "xb"
-    with BackgroundWriter(path, mode, settings.metadata(network, version)) as writer:
+    opened = InlineWriter if inline else BackgroundWriter
+    with opened(path, mode, settings.metadata(network, version)) as writer:
         sink = _OnlineSink(writer, localizer, camera, progress, observer)
         truth = messages.network_message(network, obstacles=deposits)
         sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
         with World(network, seed=settings.seed, obstacles=deposits) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
-                explorer = settings._explorer()
+                explorer = settings.explorer_config()
                 policy = make_policy(
                     settings.explore, sink.online, explorer.start_radius_m, explorer.drift_per_m
                 )

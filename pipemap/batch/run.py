@@ -80,7 +80,9 @@ def run_recording(points: Sequence[RunPoint], keep_log: bool = False) -> dict[st
         path = Path(tmp) / LOG_NAME
         settings = first.record_settings()
         network = build_network(settings.network, seed=settings.seed)
-        recorded = record_run(path, settings, network, __version__)
+        # The log is written in this process: in a batch the cores are all running
+        # recordings, and a writer process would only compete for them.
+        recorded = record_run(path, settings, network, __version__, inline=True)
         record_wall = time.perf_counter() - started
         runs = {p.run_id: _score(path, p) for p in points}
         log = path.read_bytes() if keep_log else None

@@ -1,0 +1,134 @@
+"""What a recording is asked to do: :class:`RecordSettings`, and its log's metadata.
+
+The settings name the network, the start, the seed, the condition and the camera;
+:meth:`RecordSettings.metadata` turns them into the ``pipemap.run`` record every log
+begins with (strings only, the same for the same settings).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from typing import Any
+
+from pipemap.errors import InputError, SimError
+from pipemap.localizer import DEFAULT_THRESHOLD
+from pipemap.recorder.online import Explore
+from pipemap.recorder.topics import FORMAT_VERSION
+from pipemap.sim.controller import ExplorerConfig
+from pipemap.sim.episode import Condition, SimConfig
+from pipemap.sim.network import Network
+from pipemap.sim.obstacles import Obstacle, place_obstacles
+from pipemap.sim.recovery import RecoveryConfig
+from pipemap.sim.robot import RobotSpec
+from pipemap.sim.world import CameraSpec
+
+__all__ = ["RecordSettings"]
+
+
+@dataclass(frozen=True)
+class RecordSettings:
+    """What to run: the network, the start, the seed, the condition, the camera."""
+
+    network: str
+    start: str | None = None
+    seed: int = 0
+    condition: Condition = Condition.AUTONOMOUS
+    resolution_px: int = 400
+    images_per_sweep: int = 6
+    align_sweeps: bool = True
+    threshold: float = DEFAULT_THRESHOLD
+    #: How the autonomous robot chooses exits (placed tours follow the paper's rule).
+    explore: Explore = Explore.MAP
+    #: The robot's lamp relative to full; 0.0 lights every surface evenly.
+    lamp_strength: float = 1.0
+    #: The robot off level (placement conditions): see ``SimConfig.tilt_rad``.
+    tilt_rad: float = 0.0
+    #: Floor deposits in as many pipes, drawn from the seed (autonomous condition):
+    #: see :mod:`sim.obstacles`. 0: none, and the log is as without the setting.
+    obstacles: int = 0
+
+    def __post_init__(self) -> None:
+        if self.obstacles < 0:
+            raise InputError(f"--obstacles must be >= 0, got {self.obstacles}")
+        if self.obstacles and self.condition is not Condition.AUTONOMOUS:
+            raise InputError(
+                "--obstacles: only the autonomous robot drives into deposits; placed by "
+                f"hand ({self.condition.value}) it never meets one"
+            )
+
+    def deposits(self, network: Network) -> tuple[Obstacle, ...]:
+        """The run's floor deposits (none by default)."""
+        try:
+            return place_obstacles(network, self.obstacles, self.seed)
+        except SimError as error:
+            raise InputError(f"--obstacles {self.obstacles}: {error}") from None
+
+    def camera(self) -> CameraSpec:
+        """The camera of the run."""
+        return CameraSpec(resolution_px=self.resolution_px, lamp_strength=self.lamp_strength)
+
+    def metadata(self, network: Network, version: str) -> dict[str, str]:
+        """The ``pipemap.run`` metadata record: strings only, deterministic."""
+        camera = self.camera()
+        simulator: dict[str, Any] = {
+            "robot": dataclasses.asdict(RobotSpec()),
+            "camera": dataclasses.asdict(camera),
+        }
+        if self.condition is Condition.AUTONOMOUS:
+            simulator["explorer"] = dataclasses.asdict(self.explorer_config())
+            if self.obstacles:
+                # Only with deposits: a log without them stays as it always was.
+                simulator["obstacles"] = {
+                    "count": self.obstacles,
+                    "recovery": dataclasses.asdict(RecoveryConfig()),
+                }
+        else:
+            simulator["placement"] = dataclasses.asdict(self.sim_config())
+            simulator["placement"].pop("camera")
+            simulator["placement"]["condition"] = self.condition.value
+        return {
+            "format_version": FORMAT_VERSION,
+            "pipemap_version": version,
+            "network": self.network,
+            "seed": str(self.seed),
+            "condition": self.condition.value,
+            "start": self.start if self.start is not None else network.entry,
+            "resolution_px": str(self.resolution_px),
+            "images_per_sweep": str(self.images_per_sweep),
+            "fov_rad": repr(camera.fov_rad),
+            "align_sweeps": "true" if self.align_sweeps else "false",
+            "threshold": repr(self.threshold),
+            "explore": self.explore.value
+            if self.condition is Condition.AUTONOMOUS
+            else Explore.RIGHT_HAND.value,
+            "simulator": json.dumps(simulator, sort_keys=True, default=_json_value),
+        }
+
+    def explorer_config(self) -> ExplorerConfig:
+        """The autonomous robot's settings."""
+        return ExplorerConfig(
+            images_per_sweep=self.images_per_sweep,
+            align_sweeps=self.align_sweeps,
+            tilt_rad=self.tilt_rad,
+        )
+
+    def sim_config(self) -> SimConfig:
+        """The placement conditions' settings."""
+        return SimConfig(
+            condition=self.condition,
+            seed=self.seed,
+            camera=self.camera(),
+            images_per_sweep=self.images_per_sweep,
+            align_sweeps=self.align_sweeps,
+            tilt_rad=self.tilt_rad,
+        )
+
+
+def _json_value(value: object) -> object:
+    if isinstance(value, tuple):
+        return list(value)
+    if hasattr(value, "value"):
+        return value.value  # enums
+    raise TypeError(f"not JSON: {value!r}")
