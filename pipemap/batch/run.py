@@ -62,8 +62,15 @@ def _score(path: Path, point: RunPoint) -> dict[str, Any]:
     }
 
 
-def run_recording(points: Sequence[RunPoint], keep_log: bool = False) -> dict[str, Any]:
+def run_recording(
+    points: Sequence[RunPoint], keep_log: bool = False, inline: bool = True
+) -> dict[str, Any]:
     """Record the run the ``points`` share, then score it once per point.
+
+    The log is written in this process (``inline``): in a batch every core runs a
+    recording, and a writer process of its own would only compete for them.
+    ``inline=False`` records as ``pipemap record`` does, with a writer process (for
+    ``benchmarks/bench_batch.py``'s comparison); the log's bytes are the same.
 
     Returns ``{"record": {...}, "runs": {run_id: {...}}, "log": bytes | None, ...}``.
     Raises whatever recording or scoring raises: the caller retries or records it.
@@ -80,9 +87,7 @@ def run_recording(points: Sequence[RunPoint], keep_log: bool = False) -> dict[st
         path = Path(tmp) / LOG_NAME
         settings = first.record_settings()
         network = build_network(settings.network, seed=settings.seed)
-        # The log is written in this process: in a batch the cores are all running
-        # recordings, and a writer process would only compete for them.
-        recorded = record_run(path, settings, network, __version__, inline=True)
+        recorded = record_run(path, settings, network, __version__, inline=inline)
         record_wall = time.perf_counter() - started
         runs = {p.run_id: _score(path, p) for p in points}
         log = path.read_bytes() if keep_log else None
