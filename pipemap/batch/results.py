@@ -79,6 +79,12 @@ SCORE_COLUMNS = (
     "rotation_error_rad.known.n",
     "latency_ms.mean",
     "latency_ms.max",
+    # With deposits (grid key ``obstacles``): how many pipes of each kind, counted.
+    "blocked.marked",
+    "blocked.truly_blocked",
+    "blocked.true_positives",
+    "blocked.false_blocked",
+    "blocked.missed",
 )
 #: What a run is and how it went, between the grid's columns and the scores.
 RUN_COLUMNS = (
@@ -101,6 +107,12 @@ VOLATILE_COLUMNS = (
     "worker",
     "latency_ms.mean",
     "latency_ms.max",
+    # With deposits (grid key ``obstacles``): how many pipes of each kind, counted.
+    "blocked.marked",
+    "blocked.truly_blocked",
+    "blocked.true_positives",
+    "blocked.false_blocked",
+    "blocked.missed",
 )
 RESULT_FILES = ("results.csv", "results.json")
 _SKIPPED = ("per_visit", "log", "threshold")
@@ -228,8 +240,13 @@ def result_row(out: Path, doc: Mapping[str, Any]) -> dict[str, Any]:
         row["worker"] = doc.get("worker")
         score = json.loads((_run_folder(out, doc["run_id"]) / "score.json").read_text())
         flat = flatten_score(score)
-        row.update({k: flat.get(k) for k in SCORE_COLUMNS})
+        # Lists of pipes (``blocked.*``) are counted: a table's cell is a number.
+        row.update({k: _cell(flat.get(k)) for k in SCORE_COLUMNS})
     return row
+
+
+def _cell(value: Any) -> Any:
+    return len(value) if isinstance(value, list) else value
 
 
 def _csv_value(value: Any) -> str:

@@ -16,6 +16,9 @@ a key left out takes that command's default::
     images = [6]                      # record --images        (6)
     align_sweeps = [true]             # record --[no-]align-sweeps (true)
     explore = ["map", "right-hand"]   # record --explore       (map)
+    obstacles = [0, 3]                # record --obstacles     (0; autonomous runs only)
+    tilt_deg = [0, 3]                 # record --tilt-deg      (0)
+    lighting = ["lamp", "even"]       # record --lighting      (lamp)
     rule = ["default", "paper"]       # score's decision rule  (default), see RULES
     threshold = [0.36]                # score --threshold      (the rule's own, 0.36)
 
@@ -69,14 +72,19 @@ GRID_KEYS = (
     "images",
     "align_sweeps",
     "explore",
+    "obstacles",
+    "tilt_deg",
+    "lighting",
     "rule",
     "threshold",
 )
 #: The keys that change the recording; the others change only the scoring.
-RECORDING_KEYS = GRID_KEYS[:8]
+RECORDING_KEYS = GRID_KEYS[:11]
 CONDITIONS = ("perfect", "noise", "active", "entrance", "autonomous")
 #: ``record --explore``: how the autonomous robot chooses its exits.
 EXPLORE_POLICIES = ("map", "right-hand")
+#: ``record --lighting``: the robot's lamp, or every surface lit evenly.
+LIGHTINGS = ("lamp", "even")
 #: The default of each key (``None``: resolved per run, see :class:`RunPoint`).
 DEFAULTS: dict[str, Any] = {
     "network": "paper",
@@ -87,6 +95,9 @@ DEFAULTS: dict[str, Any] = {
     "images": 6,
     "align_sweeps": True,
     "explore": "map",
+    "obstacles": 0,
+    "tilt_deg": 0.0,
+    "lighting": "lamp",
     "rule": "default",
     "threshold": None,
 }
@@ -181,12 +192,17 @@ class RunPoint:
     images: int
     align_sweeps: bool
     explore: str
+    obstacles: int
+    tilt_deg: float
+    lighting: str
     rule: str
     threshold: float
 
     @property
     def run_id(self) -> str:
-        """A stable name made of the settings (the folder under ``runs/``)."""
+        """A stable name made of the settings (the folder under ``runs/``). The
+        settings of real conditions appear only when not at their default, so that a
+        run's name is what it was before they were keys."""
         parts = [
             self.network,
             f"seed{self.seed}",
@@ -196,6 +212,9 @@ class RunPoint:
             f"{self.images}img",
             "aligned" if self.align_sweeps else "straight",
             self.explore,
+            *([f"obs{self.obstacles}"] if self.obstacles else []),
+            *([f"tilt{self.tilt_deg!r}"] if self.tilt_deg else []),
+            *([self.lighting] if self.lighting != DEFAULTS["lighting"] else []),
             self.rule,
             f"t{self.threshold!r}",
         ]
@@ -224,6 +243,9 @@ class RunPoint:
             images_per_sweep=self.images,
             align_sweeps=self.align_sweeps,
             explore=Explore(self.explore),
+            obstacles=self.obstacles,
+            tilt_rad=math.radians(self.tilt_deg),
+            lamp_strength=1.0 if self.lighting == "lamp" else 0.0,
         )
 
     def commands(self, log: str = "run.mcap") -> tuple[str, str]:
@@ -232,7 +254,10 @@ class RunPoint:
             f"pipemap record --network {self.network} --seed {self.seed} --start {self.start} "
             f"--condition {self.condition} --resolution {self.resolution} "
             f"--images {self.images}{'' if self.align_sweeps else ' --no-align-sweeps'} "
-            f"--explore {self.explore} -o {log}"
+            f"--explore {self.explore}"
+            f"{f' --obstacles {self.obstacles}' if self.obstacles else ''}"
+            f"{f' --tilt-deg {self.tilt_deg:g}' if self.tilt_deg else ''}"
+            f"{f' --lighting {self.lighting}' if self.lighting != 'lamp' else ''} -o {log}"
         )
         score = f"{RULES[self.rule].command()} {log} --threshold {self.threshold:g} --json"
         return record, score
@@ -266,11 +291,13 @@ def _is_int(v: Any) -> bool:
 
 def _check_value(key: str, v: Any) -> str | None:
     """Why ``v`` cannot be a value of ``key``, or ``None`` if it can."""
-    if key in ("network", "start", "condition", "rule", "explore"):
+    if key in ("network", "start", "condition", "rule", "explore", "lighting"):
         if not isinstance(v, str) or not v.strip():
             return f"{v!r} is not a name (a quoted string)"
         if key == "condition" and v not in CONDITIONS:
             return f"unknown condition {v!r} (one of {', '.join(CONDITIONS)})"
+        if key == "lighting" and v not in LIGHTINGS:
+            return f"unknown lighting {v!r} (one of {', '.join(LIGHTINGS)})"
         if key == "explore" and v not in EXPLORE_POLICIES:
             return f"unknown exploration {v!r} (one of {', '.join(EXPLORE_POLICIES)})"
         if key == "rule" and v not in RULES:
@@ -278,12 +305,18 @@ def _check_value(key: str, v: Any) -> str | None:
         return None
     if key == "align_sweeps":
         return None if isinstance(v, bool) else f"{v!r} is not true or false"
-    if key == "threshold":
+    if key in ("threshold", "tilt_deg"):
+        lo, hi, what = (-1.0, 1.0, "a threshold") if key == "threshold" else (0.0, 15.0, "a tilt")
         ok = isinstance(v, int | float) and not isinstance(v, bool)
-        if not ok or not math.isfinite(v) or not -1.0 <= v <= 1.0:
-            return f"{v!r} is not a threshold in [-1, 1]"
+        if not ok or not math.isfinite(v) or not lo <= v <= hi:
+            return f"{v!r} is not {what} in [{lo:g}, {hi:g}]"
         return None
-    ranges = {"seed": (0, 2**63 - 1), "resolution": (16, 4096), "images": (2, 72)}
+    ranges = {
+        "seed": (0, 2**63 - 1),
+        "resolution": (16, 4096),
+        "images": (2, 72),
+        "obstacles": (0, 10_000),
+    }
     lo, hi = ranges[key]
     if not _is_int(v) or not lo <= v <= hi:
         return f"{v!r} is not a whole number in {lo}..{hi}"
@@ -353,9 +386,30 @@ def _networks(
     return built
 
 
+def _deposits_problem(values: dict[str, Any], network: Any) -> str | None:
+    """Why a run cannot have its ``obstacles``, or ``None``: deposits are met only by
+    the autonomous robot, and a network has only so many pipes long enough."""
+    count = values["obstacles"]
+    if not count:
+        return None
+    if values["condition"] != "autonomous":
+        return (
+            f"{count} with condition {values['condition']!r}: only the autonomous robot "
+            "drives into deposits (give placed conditions their own [[grid]] table)"
+        )
+    from pipemap.sim.obstacles import place_obstacles
+
+    try:
+        place_obstacles(network, count, values["seed"])
+    except SimError as exc:
+        return f"{count} in {values['network']} (seed {values['seed']}): {exc}"
+    return None
+
+
 def _points(where: str, grid: dict[str, list[Any]], mistakes: list[str]) -> Iterator[RunPoint]:
     networks = _networks(where, grid, mistakes)
     missing: dict[tuple[str, str], list[int]] = {}
+    clashes: set[str] = set()
     for combo in itertools.product(*(grid[k] for k in GRID_KEYS)):
         values = dict(zip(GRID_KEYS, combo, strict=True))
         network = networks.get((values["network"], values["seed"]))
@@ -369,7 +423,13 @@ def _points(where: str, grid: dict[str, list[Any]], mistakes: list[str]) -> Iter
         if values["threshold"] is None:
             values["threshold"] = SCORE_THRESHOLD
         values["threshold"] = float(values["threshold"])
+        values["tilt_deg"] = float(values["tilt_deg"])
+        problem = _deposits_problem(values, network)
+        if problem is not None:
+            clashes.add(problem)
+            continue
         yield RunPoint(**values)
+    mistakes.extend(f"{where} obstacles: {c}" for c in sorted(clashes))
     for (start, network), seeds in missing.items():
         labels = networks[(network, seeds[0])].labels
         mistakes.append(

@@ -3,6 +3,7 @@ run starts (nothing is written, Ray is not started)."""
 
 from __future__ import annotations
 
+import math
 import socket
 import tomllib
 from pathlib import Path
@@ -32,7 +33,9 @@ def test_the_grid_is_the_cartesian_product_with_record_defaults() -> None:
     spec = parse_spec(SMALL)
     assert len(spec.points) == 8 and spec.recordings() == 4
     first = spec.points[0]
-    assert first == RunPoint("paper", 0, "S", "autonomous", 32, 6, True, "map", "default", 0.36)
+    assert first == RunPoint(
+        "paper", 0, "S", "autonomous", 32, 6, True, "map", 0, 0.0, "lamp", "default", 0.36
+    )
     # network outermost, the scoring keys innermost: a recording's runs are neighbours
     assert [p.rule for p in spec.points[:2]] == ["default", "paper"]
     assert [(p.network, p.seed) for p in spec.points[::2]] == [
@@ -56,6 +59,9 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
         "images": 6,
         "align_sweeps": True,
         "explore": "map",
+        "obstacles": 0,
+        "tilt_deg": 0.0,
+        "lighting": "lamp",
         "rule": "default",
         "threshold": 0.36,
     }
@@ -63,8 +69,18 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
 
 
 def test_run_ids_are_stable_names_of_the_settings() -> None:
-    point = RunPoint("random:8", 3, "n2", "noise", 64, 9, False, "map", "no-verify", 0.33)
+    point = RunPoint(
+        "random:8", 3, "n2", "noise", 64, 9, False, "map", 0, 0.0, "lamp", "no-verify", 0.33
+    )
+    # Real conditions at their defaults leave the name as it was before they were keys.
     assert point.run_id == "random8-seed3-n2-noise-64px-9img-straight-map-no-verify-t0.33"
+    real = RunPoint(
+        "paper", 0, "S", "autonomous", 64, 6, True, "map", 3, 2.5, "even", "paper", 0.36
+    )
+    assert (
+        real.run_id
+        == "paper-seed0-S-autonomous-64px-6img-aligned-map-obs3-tilt2.5-even-paper-t0.36"
+    )
     # The default start is the entry, named: leaving it out or naming it is one run.
     named = parse_spec('[grid]\nstart = ["S"]\n').points[0]
     assert named.run_id == parse_spec("[grid]\n").points[0].run_id
@@ -82,13 +98,30 @@ def test_explore_is_a_recording_setting_handed_to_record() -> None:
         parse_spec('[grid]\nexplore = ["left-hand"]\n')
 
 
+def test_real_conditions_are_recording_settings_handed_to_record() -> None:
+    spec = parse_spec(
+        '[grid]\nobstacles = [0, 2]\ntilt_deg = [0, 3]\nlighting = ["lamp", "even"]\n'
+    )
+    assert spec.recordings() == 8 and len(spec.points) == 8
+    assert spec.varying == ("obstacles", "tilt_deg", "lighting")
+    last = spec.points[-1]
+    settings = last.record_settings()
+    assert (settings.obstacles, settings.lamp_strength) == (2, 0.0)
+    assert settings.tilt_rad == pytest.approx(math.radians(3.0))
+    assert spec.points[0].record_settings().lamp_strength == 1.0
+    assert last.commands()[0].endswith("--obstacles 2 --tilt-deg 3 --lighting even -o run.mcap")
+    assert "--obstacles" not in spec.points[0].commands()[0]
+
+
 def test_grids_are_joined_and_shared_runs_made_once() -> None:
     spec = parse_spec("[[grid]]\nseed = [0, 1]\n[[grid]]\nseed = [1, 2]\n")
     assert [p.seed for p in spec.points] == [0, 1, 2]
 
 
 def test_the_commands_rebuild_the_run() -> None:
-    point = RunPoint("grid:3x3", 1, "S", "perfect", 96, 6, False, "map", "paper", 0.36)
+    point = RunPoint(
+        "grid:3x3", 1, "S", "perfect", 96, 6, False, "map", 0, 0.0, "lamp", "paper", 0.36
+    )
     record, score = point.commands()
     assert record == (
         "pipemap record --network grid:3x3 --seed 1 --start S --condition perfect "
@@ -167,6 +200,19 @@ BAD_SPECS = [
     pytest.param('[grid]\nalign_sweeps = ["yes"]\n', "'yes' is not true or false", id="align"),
     pytest.param("[grid]\nnetwork = [3]\n", "network: 3 is not a name", id="network-type"),
     pytest.param("[grid]\nseed = [0, 0]\n", "seed: 0 is listed twice", id="duplicate"),
+    pytest.param('[grid]\nlighting = ["dim"]\n', "unknown lighting 'dim'", id="lighting"),
+    pytest.param("[grid]\ntilt_deg = [16]\n", "tilt_deg: 16 is not a tilt in [0, 15]", id="tilt"),
+    pytest.param("[grid]\nobstacles = [-1]\n", "obstacles: -1 is not a whole number", id="obs"),
+    pytest.param(
+        '[grid]\ncondition = ["perfect"]\nobstacles = [1]\n',
+        "obstacles: 1 with condition 'perfect': only the autonomous robot",
+        id="obstacles-placed",
+    ),
+    pytest.param(
+        '[grid]\nnetwork = ["grid:2x2"]\nobstacles = [9]\n',
+        "obstacles: 9 in grid:2x2 (seed 0): 9 obstacles: the network has only",
+        id="obstacles-too-many",
+    ),
     pytest.param(
         '[grid]\nnetwork = ["paper", "grid:2x2"]\nstart = ["A"]\n',
         "start 'A': no such node in grid:2x2",
