@@ -359,6 +359,7 @@ def record_run(
                     config=explorer,
                     sink=sink,
                     policy=policy,
+                    motor_faults=settings.cut_outs(network),
                 )
                 status = result.status.value
                 distance, duration = result.distance_m, result.duration_ns

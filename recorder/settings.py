@@ -18,6 +18,7 @@ from pipemap.recorder.online import Explore
 from pipemap.recorder.topics import FORMAT_VERSION
 from pipemap.sim.controller import ExplorerConfig
 from pipemap.sim.episode import Condition, SimConfig
+from pipemap.sim.motor_faults import MOTOR_FAULT_S, MotorFault, draw_motor_faults
 from pipemap.sim.network import Network
 from pipemap.sim.obstacles import Obstacle, place_obstacles
 from pipemap.sim.recovery import RecoveryConfig
@@ -48,15 +49,21 @@ class RecordSettings:
     #: Floor deposits in as many pipes, drawn from the seed (autonomous condition):
     #: see :mod:`sim.obstacles`. 0: none, and the log is as without the setting.
     obstacles: int = 0
+    #: Motor cut-outs while driving, drawn from the seed (autonomous condition): see
+    #: :mod:`sim.motor_faults`. 0: none, and the log is as without the setting.
+    motor_faults: int = 0
 
     def __post_init__(self) -> None:
-        if self.obstacles < 0:
-            raise InputError(f"--obstacles must be >= 0, got {self.obstacles}")
-        if self.obstacles and self.condition is not Condition.AUTONOMOUS:
-            raise InputError(
-                "--obstacles: only the autonomous robot drives into deposits; placed by "
-                f"hand ({self.condition.value}) it never meets one"
-            )
+        what = (("--obstacles", self.obstacles, "a deposit"),)
+        what += (("--motor-faults", self.motor_faults, "a motor cut-out"),)
+        for flag, count, meets in what:
+            if count < 0:
+                raise InputError(f"{flag} must be >= 0, got {count}")
+            if count and self.condition is not Condition.AUTONOMOUS:
+                raise InputError(
+                    f"{flag}: only the autonomous robot drives into {meets}; placed by "
+                    f"hand ({self.condition.value}) it never meets one"
+                )
 
     def deposits(self, network: Network) -> tuple[Obstacle, ...]:
         """The run's floor deposits (none by default)."""
@@ -64,6 +71,10 @@ class RecordSettings:
             return place_obstacles(network, self.obstacles, self.seed)
         except SimError as error:
             raise InputError(f"--obstacles {self.obstacles}: {error}") from None
+
+    def cut_outs(self, network: Network) -> tuple[MotorFault, ...]:
+        """The run's motor cut-outs (none by default)."""
+        return draw_motor_faults(network, self.motor_faults, self.seed)
 
     def camera(self) -> CameraSpec:
         """The camera of the run."""
@@ -78,11 +89,15 @@ class RecordSettings:
         }
         if self.condition is Condition.AUTONOMOUS:
             simulator["explorer"] = dataclasses.asdict(self.explorer_config())
+            # Only with deposits or cut-outs: a log without them stays as it always was.
+            recovery = dataclasses.asdict(RecoveryConfig())
             if self.obstacles:
-                # Only with deposits: a log without them stays as it always was.
-                simulator["obstacles"] = {
-                    "count": self.obstacles,
-                    "recovery": dataclasses.asdict(RecoveryConfig()),
+                simulator["obstacles"] = {"count": self.obstacles, "recovery": recovery}
+            if self.motor_faults:
+                simulator["motor_faults"] = {
+                    "count": self.motor_faults,
+                    "duration_s": list(MOTOR_FAULT_S),
+                    "recovery": recovery,
                 }
         else:
             simulator["placement"] = dataclasses.asdict(self.sim_config())

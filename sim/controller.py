@@ -58,6 +58,7 @@ from pipemap.sim.explorer_config import (
 from pipemap.sim.follow import Bend
 from pipemap.sim.junction_actions import recentre, scan, sweep
 from pipemap.sim.motion import Motion
+from pipemap.sim.motor_faults import MotorFault
 from pipemap.sim.policy import ExitPolicy, Junction, RightHandPolicy, RunStatus
 from pipemap.sim.recovery import RecoveryConfig
 from pipemap.sim.robot import PlanarPose, Robot
@@ -222,6 +223,8 @@ def autonomous_run(
     config: ExplorerConfig | None = None,
     sink: RecordSink | None = None,
     policy: ExitPolicy | None = None,
+    motor_faults: tuple[MotorFault, ...] = (),
+    recovery: RecoveryConfig | None = None,
 ) -> ExplorationResult:
     """Place the robot at the start node (default the entry) and explore, choosing
     exits by ``policy`` (default the right-most-branch rule).
@@ -238,7 +241,8 @@ def autonomous_run(
     label = start if start is not None else network.entry
     node = network.node(label)
     heading = network.pipe_headings(label)[network.neighbours(label)[0]] + math.pi
-    robot = Robot(world, PlanarPose(node.x_m, node.y_m, heading), np.random.default_rng(seed))
+    pose = PlanarPose(node.x_m, node.y_m, heading)
+    robot = Robot(world, pose, np.random.default_rng(seed), motor_faults=motor_faults)
 
     def true_node(pose: PlanarPose) -> str:
         nearest = min(network.nodes, key=lambda n: math.hypot(n.x_m - pose.x_m, n.y_m - pose.y_m))
@@ -247,6 +251,13 @@ def autonomous_run(
 
     tilts = np.random.default_rng([seed, TILT_STREAM])  # a level run draws nothing from it
     explorer = Explorer(
-        robot, camera, config, true_node_of=true_node, sink=sink, policy=policy, tilt_rng=tilts
+        robot,
+        camera,
+        config,
+        true_node_of=true_node,
+        sink=sink,
+        policy=policy,
+        recovery=recovery,
+        tilt_rng=tilts,
     )
     return explorer.run()

@@ -21,7 +21,12 @@ robot's events. The watchdog stays the last resort: a robot that makes no progre
 for ``stuck_after_ns`` still ends the run as ``stuck``.
 
 The back-off is a straight drive backwards holding the heading by gyro, measured by
-odometry along that heading from the stall point.
+odometry along that heading from the stall point. When the wheels will not turn
+backwards either, nothing stands in front of the robot: its drive has stalled (the
+motors cut out, :mod:`sim.motor_faults`). It then switches the motors off for
+:attr:`RecoveryConfig.motor_wait_ns` and backs off again, at most
+:attr:`RecoveryConfig.motor_waits` times, before it counts the try as failed: a
+deposit is not what stopped it, and giving the pipe up would lose a pipe it can drive.
 """
 
 from __future__ import annotations
@@ -54,12 +59,22 @@ class RecoveryConfig:
     sidestep_m: float = 0.03
     #: A try ends (past the deposit) this far beyond the stall.
     pass_m: float = 0.22
+    #: The wheels turn neither way: the motors are off this long (a motor driver's
+    #: over-current trip resets in a second or so; a hot motor takes longer) ...
+    motor_wait_ns: int = 2_000_000_000
+    #: ... at most this many times per back-off (0: the robot does not wait).
+    motor_waits: int = 3
 
     def __post_init__(self) -> None:
         if not 1 <= self.tries <= 3:
             raise SimError(f"recovery tries must be 1..3, got {self.tries}")
         if self.stall_ns <= 0:
             raise SimError(f"stall time must be > 0 ns, got {self.stall_ns}")
+        if self.motor_waits < 0 or self.motor_wait_ns <= 0:
+            raise SimError(
+                f"motor waits must be >= 0 and last > 0 ns, got {self.motor_waits} x "
+                f"{self.motor_wait_ns} ns"
+            )
 
     @property
     def stall_s(self) -> float:
@@ -96,12 +111,35 @@ class Driver(Protocol):
         """Log ``text`` as an event; ``state`` is what the robot does next."""
         ...
 
+    def wait(self, duration_ns: int) -> None:
+        """Stand still, the motors off, for ``duration_ns``."""
+        ...
+
 
 def _behind_m(driver: Driver, stall: np.ndarray) -> float:
     """How far ahead of ``stall`` the robot stands, along its heading."""
     h = driver.heading()
     d = driver.position() - stall
     return float(math.cos(h) * d[0] + math.sin(h) * d[1])
+
+
+def _back_off(driver: Driver, config: RecoveryConfig, stall: np.ndarray, back_off: float) -> bool:
+    """Back off to ``back_off`` behind ``stall``; when the wheels turn backwards no more
+    than forwards, wait for the motors (see the module's text). False when it could
+    not."""
+    for waited in range(config.motor_waits + 1):
+        if driver.straight(-(_behind_m(driver, stall) + back_off), driver.heading()):
+            return True
+        if driver.halted() or waited == config.motor_waits:
+            return False
+        driver.note(
+            f"stall: the wheels turn backwards no more than forwards: motors off "
+            f"{config.motor_wait_ns / NS_PER_S:.1f} s ({waited + 1} of {config.motor_waits})",
+            "waiting",
+        )
+        driver.wait(config.motor_wait_ns)
+        driver.note("stall: motors on again", "backing off")
+    return False
 
 
 def recover(
@@ -117,12 +155,12 @@ def recover(
     for k, side in enumerate(sides, start=1):
         if driver.halted():
             return False
-        back = _behind_m(driver, stall) + back_off
         driver.note(
-            f"stall: try {k} of {len(sides)}: back off {back:.2f} m, drive {names[k - 1]}",
+            f"stall: try {k} of {len(sides)}: back off "
+            f"{_behind_m(driver, stall) + back_off:.2f} m, drive {names[k - 1]}",
             "backing off",
         )
-        if not driver.straight(-back, driver.heading()):
+        if not _back_off(driver, config, stall, back_off):
             continue
         driver.note(f"stall: try {k}: retrying", "retrying")
         if not driver.follow(side, back_off + config.pass_m):

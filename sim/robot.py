@@ -4,8 +4,9 @@ A 12 cm, six-wheel-leg robot (wheel diameter 28 mm) driving on the pipe floor. F
 contact physics made T and cross turns fail in every try of a probe, so motion is
 kinematic: the commanded wheel speeds, each disturbed by slip, move the robot along
 exact arcs (unless the move would put its footprint into a floor deposit of
-:mod:`sim.obstacles`: then it stays and its wheels stall), and PyBullet is used for
-what it does well here: range rays and the collision check.
+:mod:`sim.obstacles`, or its motors have cut out, :mod:`sim.motor_faults`: then it
+stays and its wheels stall), and PyBullet is used for what it does well here: range
+rays and the collision check.
 
 Sensors, each with noise and its own rate, all drawn from the run's generator:
 
@@ -28,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipemap.errors import SimError
+from pipemap.sim.motor_faults import MotorFault
 from pipemap.sim.obstacles import footprint_hits
 from pipemap.sim.world import World
 
@@ -118,6 +120,7 @@ class Robot:
         pose: PlanarPose,
         rng: np.random.Generator,
         spec: RobotSpec | None = None,
+        motor_faults: tuple[MotorFault, ...] = (),
     ) -> None:
         self.world = world
         self.spec = spec if spec is not None else RobotSpec()
@@ -128,6 +131,10 @@ class Robot:
         self._wheel_rad = [0.0, 0.0]  # cumulative wheel rotation, left and right
         self._speed_mps = 0.0
         self._turned_rad = 0.0  # true yaw change since the last IMU sample
+        # Motor cut-outs still to come, in order, and the end of the one under way.
+        self._faults = sorted(motor_faults, key=lambda f: f.at_m)
+        self._cut_until_ns = -1
+        self._driven_m = 0.0  # true distance driven, either way
         self._due = {
             "range": self.spec.period_ns(self.spec.tof_rate_hz),
             "imu": self.spec.period_ns(self.spec.imu_rate_hz),
@@ -166,6 +173,16 @@ class Robot:
         """True when the robot touches a wall: clearance below ``contact_clearance_m``."""
         return self.clearance_m() < self.spec.contact_clearance_m
 
+    def _cut_out(self, commanded: tuple[float, float]) -> bool:
+        """Whether the motors are cut out now; a cut-out starts when the wheels are
+        commanded past its distance."""
+        if self.t_ns < self._cut_until_ns:
+            return True
+        if self._faults and commanded != (0.0, 0.0) and self._driven_m >= self._faults[0].at_m:
+            self._cut_until_ns = self.t_ns + self._faults.pop(0).duration_ns
+            return True
+        return False
+
     def _move(self, v_mps: float, omega_rps: float, dt_s: float) -> float:
         """Advance the true pose by one step of slipping wheels; returns the true yaw rate."""
         s = self.spec
@@ -184,15 +201,18 @@ class Robot:
             y = p.y_m - v / w * (math.cos(yaw_end) - math.cos(p.yaw_rad))
         yaw = math.remainder(p.yaw_rad + w * dt_s, 2.0 * math.pi)
         obstacles = self.world.obstacles
-        if obstacles and footprint_hits(x, y, yaw, s.length_m, s.width_m, obstacles):
-            # Against a deposit: the body stays and the geared motors stall, so the
-            # wheels (and their encoders) stop too.
+        if self._cut_out(commanded) or (
+            obstacles and footprint_hits(x, y, yaw, s.length_m, s.width_m, obstacles)
+        ):
+            # Against a deposit, or the motors cut out: the body stays and the geared
+            # motors stall, so the wheels (and their encoders) stop too.
             self._accel = (-self._speed_mps / dt_s, 0.0)
             self._speed_mps = 0.0
             return 0.0
         for i in (0, 1):  # encoders see the wheel turn, not the ground it covers
             self._wheel_rad[i] += commanded[i] * dt_s / (s.wheel_diameter_m / 2.0)
         self.pose = PlanarPose(x, y, yaw)
+        self._driven_m += abs(v) * dt_s
         self._accel = ((v - self._speed_mps) / dt_s, v * w)
         self._speed_mps = v
         return w

@@ -83,6 +83,21 @@ class Driving:
         self._motion.event(text)
         self._state = state
 
+    def wait(self, duration_ns: int) -> None:
+        """Stand still, the motors off (the gyro's bias is measured meanwhile)."""
+        wait_still(self._motion, duration_ns, self._state)
+
+
+def wait_still(m: Motion, duration_ns: int, state: str) -> None:
+    """Stand still for ``duration_ns``, in control periods; ``state`` for the log."""
+    m.state = state
+    m.stall_ns = 0
+    left = duration_ns
+    while left > 0:
+        step = min(m.config.control_period_ns, left)
+        m.drive(0.0, 0.0, step)
+        left -= step
+
 
 def travel(m: Motion, origin: np.ndarray) -> float | Bend | RunStatus | None:
     """Follow the pipe entered at ``origin`` (as :func:`~pipemap.sim.follow.follow`), getting past
@@ -107,7 +122,8 @@ def travel(m: Motion, origin: np.ndarray) -> float | Bend | RunStatus | None:
 def give_up(m: Motion, left: Left, origin: np.ndarray) -> RunStatus | None:
     """Log the pipe as blocked and drive back to where the robot left the junction
     (``origin``, by odometry: it is less than a pipe away); a watchdog's status
-    if one fires, or ``STUCK`` if the way back stalls too."""
+    if one fires, or ``STUCK`` if the way back stalls even after waiting for the
+    motors."""
     visit = left.junction.visit_id
     if m.sink is not None:
         m.sink(PipeBlocked(m.robot.t_ns, visit, left.turn_rad))
@@ -116,12 +132,20 @@ def give_up(m: Motion, left: Left, origin: np.ndarray) -> RunStatus | None:
         warning=True,
     )
     move = origin - m.xy_est
-    back = math.atan2(move[1], move[0])
+    back = math.atan2(move[1], move[0])  # held all the way: the way it came
     m.turn_to(back)
-    m.state = "returning to junction"
-    m.stall_ns = 0
-    status = m.straight(float(np.linalg.norm(move)), back, stop_on_stall=True)
-    return RunStatus.STUCK if status is None and m.stalled() else status
+    distance = float(np.linalg.norm(move))
+    for waited in range(m.recovery.motor_waits + 1):
+        m.state = "returning to junction"
+        m.stall_ns = 0
+        status = m.straight(distance, back, stop_on_stall=True)
+        if status is not None or not m.stalled():
+            return status
+        if waited < m.recovery.motor_waits:  # nothing can be in the way it came: the motors
+            m.event("stall on the way back: motors off", warning=True)
+            wait_still(m, m.recovery.motor_wait_ns, "waiting")
+            distance = float(np.linalg.norm(origin - m.xy_est))
+    return RunStatus.STUCK
 
 
 def choose_again(m: Motion, policy: ExitPolicy, left: Left) -> ExitChoice:

@@ -19,6 +19,7 @@ __all__ = [
     "fraction",
     "highpass",
     "images",
+    "motor_faults",
     "node_id",
     "positive_int",
     "resolution",
@@ -75,6 +76,7 @@ _fov_deg = _checked(float, lambda v: 0.0 < v < 360.0, "field of view must be in 
 _zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (1, 2]")
 tilt_deg = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 15.0, "not in [0, 15]")
 obstacles = _checked(int, lambda v: v >= 0, "an obstacle count must be >= 0")
+motor_faults = _checked(int, lambda v: v >= 0, "a cut-out count must be >= 0")
 highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
 
 

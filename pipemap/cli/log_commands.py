@@ -71,11 +71,17 @@ def _close_live(live: Any, err: TextIO) -> Any:
         return None
 
 
-def _obstacles_note(simulator: Any) -> str:
-    """``, N obstacles`` when the run's simulator settings put deposits in pipes."""
-    settings = simulator.get("obstacles") if isinstance(simulator, dict) else None
-    count = settings.get("count") if isinstance(settings, dict) else None
-    return f", {count} obstacles" if isinstance(count, int) and count > 0 else ""
+def _conditions_note(simulator: Any) -> str:
+    """``, N obstacles`` when the run's simulator settings put deposits in pipes, and
+    ``, N motor cut-outs`` when they cut the motors out."""
+    if not isinstance(simulator, dict):
+        return ""
+    note = ""
+    for key, noun in (("obstacles", "obstacles"), ("motor_faults", "motor cut-outs")):
+        settings = simulator.get(key)
+        count = settings.get("count") if isinstance(settings, dict) else None
+        note += f", {count} {noun}" if isinstance(count, int) and count > 0 else ""
+    return note
 
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -116,6 +122,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
         tilt_rad=math.radians(args.tilt_deg),
         obstacles=args.obstacles,
+        motor_faults=args.motor_faults,
     )
     settings.deposits(network)  # too many for the network: an error before any work
     live = None
@@ -267,7 +274,7 @@ def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
             f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
             f"explore {meta.get('explore', 'right-hand')}, "
             f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images"
-            + _obstacles_note(meta.get("simulator")),
+            + _conditions_note(meta.get("simulator")),
             f"sweeps     {doc['sweeps']} complete in {doc['visits']} node visits"
             + (f" ({len(skipped)} skipped by a replay)" if skipped else ""),
             f"result     {result.get('status', 'none recorded')}",

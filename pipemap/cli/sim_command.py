@@ -27,6 +27,7 @@ from pipemap.imagesets import RobotNotes, write_image_set
 
 if TYPE_CHECKING:  # the simulator loads lazily: pipemap --help stays instant
     from pipemap.sim.episode import Condition
+    from pipemap.sim.motor_faults import MotorFault
     from pipemap.sim.network import Network
     from pipemap.sim.obstacles import Obstacle
 
@@ -91,9 +92,10 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         tilt_rad=math.radians(args.tilt_deg),
     )
     deposits = _deposits(args, network, condition)
+    faults = _motor_faults(args, network, condition)
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
-        return _run_autonomous(args, network, camera, target, out, deposits)
+        return _run_autonomous(args, network, camera, target, out, deposits, faults)
     with World(network, seed=args.seed) as world:
         episode = Episode(world, config, start=args.start)
         localizer = None
@@ -143,7 +145,24 @@ def _deposits(
         raise InputError(f"--obstacles {args.obstacles}: {error}") from None
 
 
-def _run_autonomous(args, network, camera, target: Path, out: TextIO, deposits=()) -> int:  # type: ignore[no-untyped-def]
+def _motor_faults(
+    args: argparse.Namespace, network: Network, condition: Condition
+) -> tuple[MotorFault, ...]:
+    """The motor cut-outs of ``--motor-faults`` (autonomous only), before any work."""
+    from pipemap.sim.episode import Condition
+    from pipemap.sim.motor_faults import draw_motor_faults
+
+    if args.motor_faults and condition is not Condition.AUTONOMOUS:
+        raise InputError(
+            "--motor-faults: only the autonomous robot drives; placed by hand "
+            f"({condition.value}) its motors never cut out"
+        )
+    return draw_motor_faults(network, args.motor_faults, args.seed)
+
+
+def _run_autonomous(
+    args, network, camera, target: Path, out: TextIO, deposits=(), faults=()
+) -> int:  # type: ignore[no-untyped-def]
     """The full exploration by the sensor-driven controller; sweeps are kept whatever
     ends it. With ``--explore map`` the localizer runs online and the robot explores
     its map; each sweep's ``sweep.txt`` then holds its exits and departure too."""
@@ -176,7 +195,14 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO, deposits=(
         )
         policy = make_policy(explore, online, config.start_radius_m, config.drift_per_m)
         result = autonomous_run(
-            world, camera, args.seed, start=args.start, config=config, sink=sink, policy=policy
+            world,
+            camera,
+            args.seed,
+            start=args.start,
+            config=config,
+            sink=sink,
+            policy=policy,
+            motor_faults=faults,
         )
     for index, sweep in enumerate(result.sweeps, start=1):
         info = _info(sweep.start_pose, sweep.true_node)
@@ -204,9 +230,9 @@ def _run_autonomous(args, network, camera, target: Path, out: TextIO, deposits=(
         f"({driven}/{len(pipes)} pipes), "
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, {status}"
         + (
-            f"; {len(deposits)} deposits: got past {recovered} stall(s), gave up "
-            f"{given_up} pipe(s) as blocked"
-            if deposits
+            f"; {len(deposits)} deposits, {len(faults)} motor cut-outs: got past "
+            f"{recovered} stall(s), gave up {given_up} pipe(s) as blocked"
+            if deposits or faults
             else ""
         )
         + "\n"

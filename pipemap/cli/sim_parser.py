@@ -53,6 +53,14 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         "the seed, each passable (on one side) or blocking (default 0: none)",
     )
     p.add_argument(
+        "--motor-faults",
+        type=arguments.motor_faults,
+        default=0,
+        metavar="N",
+        help="autonomous condition: the motors cut out N times while driving, 1-4 s each, "
+        "drawn from the seed (default 0: never)",
+    )
+    p.add_argument(
         "--images",
         type=arguments.images,
         default=6,

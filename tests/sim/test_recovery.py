@@ -34,6 +34,13 @@ class Corridor:
     drives: int = 0
     notes: list[str] = field(default_factory=list)
     halt_after: int | None = None
+    #: The motors are cut out for this long (seconds) from the first stall on: no
+    #: drive moves the robot until :meth:`wait` has stood out the rest.
+    cut_out_s: float = 0.0
+    waited_s: float = 0.0
+
+    def _motors_off(self) -> bool:
+        return self.waited_s < self.cut_out_s and self.drives > 1
 
     def position(self) -> np.ndarray:
         return self.xy.copy()
@@ -41,6 +48,8 @@ class Corridor:
     def straight(self, distance_m: float, heading_rad: float) -> bool:
         self.drives += 1
         self.yaw = heading_rad
+        if self._motors_off():
+            return False
         step = math.copysign(0.002, distance_m)
         direction = np.array([math.cos(heading_rad), math.sin(heading_rad)])
         for _ in range(int(abs(distance_m) / 0.002)):
@@ -61,6 +70,8 @@ class Corridor:
     def follow(self, left_m: float, distance_m: float) -> bool:
         self.drives += 1
         self.yaw = 0.0
+        if self._motors_off():
+            return False
         for _ in range(int(distance_m / 0.002)):
             dy = float(np.clip(left_m - self.xy[1], -0.002 * 0.36, 0.002 * 0.36))
             nxt = self.xy + np.array([0.002, dy])
@@ -71,6 +82,9 @@ class Corridor:
 
     def note(self, text: str, state: str) -> None:
         self.notes.append(text)
+
+    def wait(self, duration_ns: int) -> None:
+        self.waited_s += duration_ns / 1e9
 
 
 def _stalled(corridor: Corridor) -> np.ndarray:
@@ -122,3 +136,39 @@ def test_a_watchdog_stops_the_tries() -> None:
 def test_the_number_of_tries_is_bounded(tries: int) -> None:
     with pytest.raises(SimError, match="tries"):
         RecoveryConfig(tries=tries)
+
+
+def test_a_stall_that_will_not_back_off_waits_for_the_motors_and_drives_on() -> None:
+    # Nothing in the pipe: the motors cut out at the first stall for 3 s.
+    robot = Corridor((), cut_out_s=3.0)
+    robot.drives = 1  # the drive that stalled
+    stall = robot.position()
+    assert recover(robot, RecoveryConfig(), stall)
+    waits = [n for n in robot.notes if "motors off" in n]
+    assert waits == [
+        "stall: the wheels turn backwards no more than forwards: motors off 2.0 s (1 of 3)",
+        "stall: the wheels turn backwards no more than forwards: motors off 2.0 s (2 of 3)",
+    ]
+    assert robot.waited_s == 4.0
+    assert "stall: past it at try 1" in robot.notes
+
+
+def test_without_waiting_a_motor_cut_out_costs_the_pipe() -> None:
+    robot = Corridor((), cut_out_s=3.0)
+    robot.drives = 1
+    assert not recover(robot, RecoveryConfig(motor_waits=0), robot.position())
+    assert robot.waited_s == 0.0 and not any("motors off" in n for n in robot.notes)
+
+
+def test_a_deposit_is_not_waited_for() -> None:
+    # Backing off from a deposit works: the motors are fine, nothing to wait for.
+    robot = Corridor((BLOCKING,))
+    assert not recover(robot, RecoveryConfig(), _stalled(robot))
+    assert robot.waited_s == 0.0
+
+
+def test_motor_waits_are_checked() -> None:
+    with pytest.raises(SimError, match="motor waits"):
+        RecoveryConfig(motor_waits=-1)
+    with pytest.raises(SimError, match="motor waits"):
+        RecoveryConfig(motor_wait_ns=0)
