@@ -64,7 +64,10 @@ def _run(network: str, seed: int, args: argparse.Namespace, folder: Path) -> dic
         "blocking": kinds.count(ObstacleKind.BLOCKING),
         "stalls": sum(t.startswith("stall ") and t.endswith("into the pipe") for t in texts),
         "waits": sum("motors off" in t for t in texts),
-        "got_past": sum(t.startswith("stall: past it") for t in texts),
+        # Past a deposit, or on after the motors came back.
+        "got_past": sum(
+            t.startswith("stall: past it") or t.endswith("nothing ahead: driving on") for t in texts
+        ),
         "gave_up": sum(blocked_visit(log) is not None for log in logs),
         "marks_right": len(blocked.true_positives) if blocked else 0,
         "marks_false": len(blocked.false_blocked) if blocked else 0,

@@ -123,15 +123,17 @@ def _behind_m(driver: Driver, stall: np.ndarray) -> float:
     return float(math.cos(h) * d[0] + math.sin(h) * d[1])
 
 
-def _back_off(driver: Driver, config: RecoveryConfig, stall: np.ndarray, back_off: float) -> bool:
+def _back_off(
+    driver: Driver, config: RecoveryConfig, stall: np.ndarray, back_off: float
+) -> tuple[bool, bool]:
     """Back off to ``back_off`` behind ``stall``; when the wheels turn backwards no more
-    than forwards, wait for the motors (see the module's text). False when it could
-    not."""
+    than forwards, wait for the motors (see the module's text). Whether it backed off,
+    and whether it had to wait for the motors."""
     for waited in range(config.motor_waits + 1):
         if driver.straight(-(_behind_m(driver, stall) + back_off), driver.heading()):
-            return True
+            return True, waited > 0
         if driver.halted() or waited == config.motor_waits:
-            return False
+            return False, waited > 0
         driver.note(
             f"stall: the wheels turn backwards no more than forwards: motors off "
             f"{config.motor_wait_ns / NS_PER_S:.1f} s ({waited + 1} of {config.motor_waits})",
@@ -139,16 +141,18 @@ def _back_off(driver: Driver, config: RecoveryConfig, stall: np.ndarray, back_of
         )
         driver.wait(config.motor_wait_ns)
         driver.note("stall: motors on again", "backing off")
-    return False
+    return False, True
 
 
 def recover(
     driver: Driver, config: RecoveryConfig, stall: np.ndarray, room_m: float | None = None
 ) -> bool:
     """Try to get past what stopped the robot at ``stall``: True once past (the
-    follower then centres it again), False when every try stalled (the robot then
-    stands behind the stall point). It backs off :attr:`~RecoveryConfig.back_off_m`,
-    or ``room_m`` if that is less (it stays in the pipe, clear of the junction)."""
+    follower then centres it again) or once the motors, not the way ahead, are found
+    to have stalled (it then stands behind the stall point and the follower drives
+    on), False when every try stalled (the robot then stands behind the stall
+    point). It backs off :attr:`~RecoveryConfig.back_off_m`, or ``room_m`` if that
+    is less (it stays in the pipe, clear of the junction)."""
     back_off = config.back_off_m if room_m is None else max(0.05, min(config.back_off_m, room_m))
     sides = (0.0, config.sidestep_m, -config.sidestep_m)[: config.tries]
     names = ("on the axis", "left of the axis", "right of the axis")
@@ -160,8 +164,14 @@ def recover(
             f"{_behind_m(driver, stall) + back_off:.2f} m, drive {names[k - 1]}",
             "backing off",
         )
-        if not _back_off(driver, config, stall, back_off):
+        backed_off, waited = _back_off(driver, config, stall, back_off)
+        if not backed_off:
             continue
+        if waited:
+            # The drive stalled, not the way ahead: drive on as ever (the follower
+            # knows where the pipe ends; a retry's fixed run may not).
+            driver.note("stall: the motors stalled, nothing ahead: driving on", "following")
+            return True
         driver.note(f"stall: try {k}: retrying", "retrying")
         if not driver.follow(side, back_off + config.pass_m):
             continue

@@ -17,6 +17,7 @@ a key left out takes that command's default::
     align_sweeps = [true]             # record --[no-]align-sweeps (true)
     explore = ["map", "right-hand"]   # record --explore       (map)
     obstacles = [0, 3]                # record --obstacles     (0; autonomous runs only)
+    motor_faults = [0, 3]             # record --motor-faults  (0; autonomous runs only)
     tilt_deg = [0, 3]                 # record --tilt-deg      (0)
     lighting = ["lamp", "even"]       # record --lighting      (lamp)
     rule = ["default", "paper"]       # score's decision rule  (default), see RULES
@@ -73,13 +74,14 @@ GRID_KEYS = (
     "align_sweeps",
     "explore",
     "obstacles",
+    "motor_faults",
     "tilt_deg",
     "lighting",
     "rule",
     "threshold",
 )
 #: The keys that change the recording; the others change only the scoring.
-RECORDING_KEYS = GRID_KEYS[:11]
+RECORDING_KEYS = GRID_KEYS[:12]
 CONDITIONS = ("perfect", "noise", "active", "entrance", "autonomous")
 #: ``record --explore``: how the autonomous robot chooses its exits.
 EXPLORE_POLICIES = ("map", "right-hand")
@@ -96,6 +98,7 @@ DEFAULTS: dict[str, Any] = {
     "align_sweeps": True,
     "explore": "map",
     "obstacles": 0,
+    "motor_faults": 0,
     "tilt_deg": 0.0,
     "lighting": "lamp",
     "rule": "default",
@@ -193,6 +196,7 @@ class RunPoint:
     align_sweeps: bool
     explore: str
     obstacles: int
+    motor_faults: int
     tilt_deg: float
     lighting: str
     rule: str
@@ -213,6 +217,7 @@ class RunPoint:
             "aligned" if self.align_sweeps else "straight",
             self.explore,
             *([f"obs{self.obstacles}"] if self.obstacles else []),
+            *([f"motor{self.motor_faults}"] if self.motor_faults else []),
             *([f"tilt{self.tilt_deg!r}"] if self.tilt_deg else []),
             *([self.lighting] if self.lighting != DEFAULTS["lighting"] else []),
             self.rule,
@@ -244,6 +249,7 @@ class RunPoint:
             align_sweeps=self.align_sweeps,
             explore=Explore(self.explore),
             obstacles=self.obstacles,
+            motor_faults=self.motor_faults,
             tilt_rad=math.radians(self.tilt_deg),
             lamp_strength=1.0 if self.lighting == "lamp" else 0.0,
         )
@@ -256,6 +262,7 @@ class RunPoint:
             f"--images {self.images}{'' if self.align_sweeps else ' --no-align-sweeps'} "
             f"--explore {self.explore}"
             f"{f' --obstacles {self.obstacles}' if self.obstacles else ''}"
+            f"{f' --motor-faults {self.motor_faults}' if self.motor_faults else ''}"
             f"{f' --tilt-deg {self.tilt_deg:g}' if self.tilt_deg else ''}"
             f"{f' --lighting {self.lighting}' if self.lighting != 'lamp' else ''} -o {log}"
         )
@@ -316,6 +323,7 @@ def _check_value(key: str, v: Any) -> str | None:
         "resolution": (16, 4096),
         "images": (2, 72),
         "obstacles": (0, 10_000),
+        "motor_faults": (0, 10_000),
     }
     lo, hi = ranges[key]
     if not _is_int(v) or not lo <= v <= hi:
@@ -386,24 +394,28 @@ def _networks(
     return built
 
 
-def _deposits_problem(values: dict[str, Any], network: Any) -> str | None:
-    """Why a run cannot have its ``obstacles``, or ``None``: deposits are met only by
-    the autonomous robot, and a network has only so many pipes long enough."""
-    count = values["obstacles"]
-    if not count:
-        return None
-    if values["condition"] != "autonomous":
-        return (
-            f"{count} with condition {values['condition']!r}: only the autonomous robot "
-            "drives into deposits (give placed conditions their own [[grid]] table)"
-        )
-    from pipemap.sim.obstacles import place_obstacles
+def _driving_problems(values: dict[str, Any], network: Any) -> Iterator[str]:
+    """Why a run cannot have its ``obstacles`` or ``motor_faults`` (each as ``key:
+    why``): only the autonomous robot drives, and a network has only so many pipes
+    long enough for a deposit."""
+    placed = values["condition"] != "autonomous"
+    for key, meets in (("obstacles", "deposits"), ("motor_faults", "motor cut-outs")):
+        count = values[key]
+        if count and placed:
+            yield (
+                f"{key}: {count} with condition {values['condition']!r}: only the autonomous "
+                f"robot drives into {meets} (give placed conditions their own [[grid]] table)"
+            )
+    if values["obstacles"] and not placed:
+        from pipemap.sim.obstacles import place_obstacles
 
-    try:
-        place_obstacles(network, count, values["seed"])
-    except SimError as exc:
-        return f"{count} in {values['network']} (seed {values['seed']}): {exc}"
-    return None
+        try:
+            place_obstacles(network, values["obstacles"], values["seed"])
+        except SimError as exc:
+            yield (
+                f"obstacles: {values['obstacles']} in {values['network']} "
+                f"(seed {values['seed']}): {exc}"
+            )
 
 
 def _points(where: str, grid: dict[str, list[Any]], mistakes: list[str]) -> Iterator[RunPoint]:
@@ -424,12 +436,12 @@ def _points(where: str, grid: dict[str, list[Any]], mistakes: list[str]) -> Iter
             values["threshold"] = SCORE_THRESHOLD
         values["threshold"] = float(values["threshold"])
         values["tilt_deg"] = float(values["tilt_deg"])
-        problem = _deposits_problem(values, network)
-        if problem is not None:
-            clashes.add(problem)
+        problems = set(_driving_problems(values, network))
+        if problems:
+            clashes |= problems
             continue
         yield RunPoint(**values)
-    mistakes.extend(f"{where} obstacles: {c}" for c in sorted(clashes))
+    mistakes.extend(f"{where} {c}" for c in sorted(clashes))
     for (start, network), seeds in missing.items():
         labels = networks[(network, seeds[0])].labels
         mistakes.append(

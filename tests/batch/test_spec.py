@@ -34,7 +34,7 @@ def test_the_grid_is_the_cartesian_product_with_record_defaults() -> None:
     assert len(spec.points) == 8 and spec.recordings() == 4
     first = spec.points[0]
     assert first == RunPoint(
-        "paper", 0, "S", "autonomous", 32, 6, True, "map", 0, 0.0, "lamp", "default", 0.36
+        "paper", 0, "S", "autonomous", 32, 6, True, "map", 0, 0, 0.0, "lamp", "default", 0.36
     )
     # network outermost, the scoring keys innermost: a recording's runs are neighbours
     assert [p.rule for p in spec.points[:2]] == ["default", "paper"]
@@ -60,6 +60,7 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
         "align_sweeps": True,
         "explore": "map",
         "obstacles": 0,
+        "motor_faults": 0,
         "tilt_deg": 0.0,
         "lighting": "lamp",
         "rule": "default",
@@ -70,16 +71,16 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
 
 def test_run_ids_are_stable_names_of_the_settings() -> None:
     point = RunPoint(
-        "random:8", 3, "n2", "noise", 64, 9, False, "map", 0, 0.0, "lamp", "no-verify", 0.33
+        "random:8", 3, "n2", "noise", 64, 9, False, "map", 0, 0, 0.0, "lamp", "no-verify", 0.33
     )
     # Real conditions at their defaults leave the name as it was before they were keys.
     assert point.run_id == "random8-seed3-n2-noise-64px-9img-straight-map-no-verify-t0.33"
     real = RunPoint(
-        "paper", 0, "S", "autonomous", 64, 6, True, "map", 3, 2.5, "even", "paper", 0.36
+        "paper", 0, "S", "autonomous", 64, 6, True, "map", 3, 2, 2.5, "even", "paper", 0.36
     )
     assert (
         real.run_id
-        == "paper-seed0-S-autonomous-64px-6img-aligned-map-obs3-tilt2.5-even-paper-t0.36"
+        == "paper-seed0-S-autonomous-64px-6img-aligned-map-obs3-motor2-tilt2.5-even-paper-t0.36"
     )
     # The default start is the entry, named: leaving it out or naming it is one run.
     named = parse_spec('[grid]\nstart = ["S"]\n').points[0]
@@ -100,16 +101,19 @@ def test_explore_is_a_recording_setting_handed_to_record() -> None:
 
 def test_real_conditions_are_recording_settings_handed_to_record() -> None:
     spec = parse_spec(
-        '[grid]\nobstacles = [0, 2]\ntilt_deg = [0, 3]\nlighting = ["lamp", "even"]\n'
+        "[grid]\nobstacles = [0, 2]\nmotor_faults = [0, 1]\ntilt_deg = [0, 3]\n"
+        'lighting = ["lamp", "even"]\n'
     )
-    assert spec.recordings() == 8 and len(spec.points) == 8
-    assert spec.varying == ("obstacles", "tilt_deg", "lighting")
+    assert spec.recordings() == 16 and len(spec.points) == 16
+    assert spec.varying == ("obstacles", "motor_faults", "tilt_deg", "lighting")
     last = spec.points[-1]
     settings = last.record_settings()
-    assert (settings.obstacles, settings.lamp_strength) == (2, 0.0)
+    assert (settings.obstacles, settings.motor_faults, settings.lamp_strength) == (2, 1, 0.0)
     assert settings.tilt_rad == pytest.approx(math.radians(3.0))
     assert spec.points[0].record_settings().lamp_strength == 1.0
-    assert last.commands()[0].endswith("--obstacles 2 --tilt-deg 3 --lighting even -o run.mcap")
+    assert last.commands()[0].endswith(
+        "--obstacles 2 --motor-faults 1 --tilt-deg 3 --lighting even -o run.mcap"
+    )
     assert "--obstacles" not in spec.points[0].commands()[0]
 
 
@@ -120,7 +124,7 @@ def test_grids_are_joined_and_shared_runs_made_once() -> None:
 
 def test_the_commands_rebuild_the_run() -> None:
     point = RunPoint(
-        "grid:3x3", 1, "S", "perfect", 96, 6, False, "map", 0, 0.0, "lamp", "paper", 0.36
+        "grid:3x3", 1, "S", "perfect", 96, 6, False, "map", 0, 0, 0.0, "lamp", "paper", 0.36
     )
     record, score = point.commands()
     assert record == (
@@ -208,6 +212,12 @@ BAD_SPECS = [
         "obstacles: 1 with condition 'perfect': only the autonomous robot",
         id="obstacles-placed",
     ),
+    pytest.param(
+        '[grid]\ncondition = ["noise"]\nmotor_faults = [2]\n',
+        "motor_faults: 2 with condition 'noise': only the autonomous robot",
+        id="motor-faults-placed",
+    ),
+    pytest.param("[grid]\nmotor_faults = [1.5]\n", "motor_faults: 1.5 is not", id="motor"),
     pytest.param(
         '[grid]\nnetwork = ["grid:2x2"]\nobstacles = [9]\n',
         "obstacles: 9 in grid:2x2 (seed 0): 9 obstacles: the network has only",

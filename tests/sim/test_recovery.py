@@ -138,7 +138,7 @@ def test_the_number_of_tries_is_bounded(tries: int) -> None:
         RecoveryConfig(tries=tries)
 
 
-def test_a_stall_that_will_not_back_off_waits_for_the_motors_and_drives_on() -> None:
+def test_a_stall_that_will_not_back_off_waits_for_the_motors_and_follows_on() -> None:
     # Nothing in the pipe: the motors cut out at the first stall for 3 s.
     robot = Corridor((), cut_out_s=3.0)
     robot.drives = 1  # the drive that stalled
@@ -150,7 +150,10 @@ def test_a_stall_that_will_not_back_off_waits_for_the_motors_and_drives_on() -> 
         "stall: the wheels turn backwards no more than forwards: motors off 2.0 s (2 of 3)",
     ]
     assert robot.waited_s == 4.0
-    assert "stall: past it at try 1" in robot.notes
+    # No retry's fixed run: the follower drives on (it knows where the pipe ends).
+    assert robot.notes[-1] == "stall: the motors stalled, nothing ahead: driving on"
+    assert not any("retrying" in n for n in robot.notes)
+    assert robot.position()[0] == pytest.approx(stall[0] - 0.25, abs=0.01)
 
 
 def test_without_waiting_a_motor_cut_out_costs_the_pipe() -> None:
