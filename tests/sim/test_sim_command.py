@@ -192,9 +192,13 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     from pipemap.sim.episode import Pose, Sweep
 
     policies = []
+    faults = []
 
-    def one_sweep_run(world, camera, seed, start=None, config=None, sink=None, policy=None):  # type: ignore[no-untyped-def]
+    def one_sweep_run(  # type: ignore[no-untyped-def]
+        world, camera, seed, start=None, config=None, sink=None, policy=None, motor_faults=()
+    ):
         policies.append(policy)
+        faults.append(motor_faults)
         sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8), Pose(0.0, 0.0, 0.05), "S")
         return ExplorationResult(RunStatus.FINISHED, sweeps=[sweep], distance_m=1.0)
 
@@ -213,6 +217,13 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
 
     assert [type(p) for p in policies] == [MapPolicy, RightHandPolicy]
     assert "explore right-hand" in out
+    # --motor-faults hands it the cut-outs drawn from the seed (none by default).
+    _run([*argv, "--motor-faults", "2", "--save-sweeps", str(tmp_path / "mf")], capfd)
+    from pipemap.sim.motor_faults import draw_motor_faults
+    from pipemap.sim.network import build_network
+
+    assert faults[0] == () and faults[-1] == draw_motor_faults(build_network("paper"), 2, 0)
+    assert len(faults[-1]) == 2
 
 
 def test_lighting_even_turns_the_lamp_off(
