@@ -1,11 +1,13 @@
-"""A recorded run's revisit rotations with and without the two-view tilt refinement.
+"""A recorded run's revisit rotations with and without the IMU's levelling and the
+two-view tilt refinement.
 
     pipemap record --network paper --tilt-deg 3 -o tilted.mcap
     python benchmarks/bench_tilt_log.py tilted.mcap
 
-Replays and scores the log twice, at pipemap's defaults and with
-``TwoViewConfig.tilt`` off, and prints the map's status and the largest and mean
-rotation error of the correct revisits (against the log's truth). For placement
+Replays and scores the log four times: at pipemap's defaults (each sweep levelled by
+its IMU reading, then the tilt refinement), with ``TwoViewConfig.imu_level`` off,
+with ``TwoViewConfig.tilt`` off, and with both off; prints the map's status and the
+largest and mean rotation error of the correct revisits (against the log's truth). For placement
 runs rendered directly, without a log, see ``bench_tilt.py``.
 """
 
@@ -26,11 +28,15 @@ def main() -> int:
     args = parser.parse_args()
     log = api.open_log(args.log)
     defaults = LocalizerConfig()
-    untilted = replace(defaults.two_view_config, tilt=False)
-    for name, config in (
-        ("with the tilt refinement", defaults),
-        ("without it", replace(defaults, two_view_config=untilted)),
-    ):
+    two_view = defaults.two_view_config
+    variants = {
+        "defaults (IMU levelling, tilt refinement)": two_view,
+        "no IMU levelling": replace(two_view, imu_level=False),
+        "no tilt refinement": replace(two_view, tilt=False),
+        "neither": replace(two_view, imu_level=False, tilt=False),
+    }
+    for name, variant in variants.items():
+        config = replace(defaults, two_view_config=variant)
         report = api.score(log, config)
         errors = [
             abs(v.rotation_error_rad)
@@ -40,7 +46,7 @@ def main() -> int:
         worst = max(errors, default=float("nan"))
         mean = sum(errors) / len(errors) if errors else float("nan")
         print(
-            f"{name:<25} map {report.map_status:<8} rotation error of {len(errors)} "
+            f"{name:<42} map {report.map_status:<8} rotation error of {len(errors)} "
             f"revisits: max {worst:.4f} rad, mean {mean:.4f} rad"
         )
     return 0

@@ -132,6 +132,10 @@ class TwoViewConfig:
     #: inliers: three more unknowns must explain more. Level sweeps (pipemap's
     #: simulator) gain 0.87-1.04 times, the paper's tilted sets 1.32 times or more.
     tilt_min_gain: float = 1.2
+    #: Level each sweep's bearings by its IMU's roll and pitch
+    #: (:attr:`ImageSet.imu_tilt_rad`) before matching: the planar fit then holds for
+    #: a robot off level, and the tilt refinement is left with the IMU's error.
+    imu_level: bool = True
 
 
 @dataclass(frozen=True)
@@ -223,6 +227,8 @@ class StoredFeatures:
     fov_rad: float
     camera_angle_rad: float
     factor: int
+    #: The IMU's (roll, pitch) of the sweep: the bearings are levelled by it.
+    imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
 
     @property
     def nbytes(self) -> int:
@@ -252,6 +258,8 @@ class StoredFeatures:
         horizontal = np.hypot(focal_px, x)
         rays = np.stack([np.cos(azimuth) * horizontal, np.sin(azimuth) * horizontal, y], axis=1)
         bearings = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+        if self.imu_tilt_rad != (0.0, 0.0):
+            bearings = bearings @ _levelling(*self.imu_tilt_rad).T
         return SweepFeatures(bearings, self.descriptors, pixel_rad, self.image, looks, self.fov_rad)
 
 
@@ -259,6 +267,18 @@ def detection_factor(width_px: int, config: TwoViewConfig) -> int:
     """How much a sweep's images are reduced before ORB sees them: the smallest
     integer factor that brings the width to ``config.detect_width_px`` or less."""
     return max(1, -(-width_px // config.detect_width_px))
+
+
+def _levelling(roll_rad: float, pitch_rad: float) -> np.ndarray:
+    """The rotation taking bearings of a body rolled and pitched as given (the frame
+    the camera sweeps in) into a level frame of the same heading: pitch about the
+    left axis (nose down positive) after roll about the forward one."""
+    cp, sp = math.cos(pitch_rad), math.sin(pitch_rad)
+    cr, sr = math.cos(roll_rad), math.sin(roll_rad)
+    pitch = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    roll = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    matrix: np.ndarray = pitch @ roll
+    return matrix
 
 
 def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) -> StoredFeatures:
@@ -307,6 +327,7 @@ def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) ->
         fov_rad=image_set.fov_rad,
         camera_angle_rad=image_set.camera_angle_rad,
         factor=factor,
+        imu_tilt_rad=image_set.imu_tilt_rad if config.imu_level else (0.0, 0.0),
     )
 
 

@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from pipemap.errors import InputError
-from pipemap.localizer import ImageSet
+from pipemap.localizer import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
 from pipemap.pngcheck import PNG_SIGNATURE, png_problem
 
 __all__ = [
@@ -103,12 +103,14 @@ def load_image_set(
                 f"{images[0].shape[1]}x{images[0].shape[0]}"
             )
         images.append(image)
-    kwargs: dict[str, float] = {"camera_angle_rad": _camera_angle(path)}
-    if fov_rad is not None:
-        kwargs["fov_rad"] = fov_rad
-    if keep_top_fraction is not None:
-        kwargs["keep_top_fraction"] = keep_top_fraction
-    return ImageSet(np.stack(images), **kwargs)
+    return ImageSet(
+        np.stack(images),
+        fov_rad=DEFAULT_FOV_RAD if fov_rad is None else fov_rad,
+        keep_top_fraction=DEFAULT_KEEP_TOP_FRACTION
+        if keep_top_fraction is None
+        else keep_top_fraction,
+        camera_angle_rad=_camera_angle(path),
+    )
 
 
 def _number(path: Path, key: str, text: str) -> float:

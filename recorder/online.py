@@ -69,10 +69,15 @@ class Explore(enum.Enum):
     RIGHT_HAND = "right-hand"
 
 
-def gray_set(images: np.ndarray, fov_rad: float, camera_angle_rad: float) -> ImageSet:
+def gray_set(
+    images: np.ndarray,
+    fov_rad: float,
+    camera_angle_rad: float,
+    imu_tilt_rad: tuple[float, float] = (0.0, 0.0),
+) -> ImageSet:
     """The image set of RGB sweep images, as the localizer (and a replay) sees it."""
     gray = np.stack([cv2.cvtColor(im, cv2.COLOR_RGB2GRAY) for im in images])
-    return ImageSet(gray, fov_rad=fov_rad, camera_angle_rad=camera_angle_rad)
+    return ImageSet(gray, fov_rad, camera_angle_rad=camera_angle_rad, imu_tilt_rad=imu_tilt_rad)
 
 
 class NoProbes:
@@ -117,7 +122,7 @@ class OnlineLocalizer:
         sweep = self._pending.pop(visit_id, None)
         if sweep is None:
             return
-        seen = gray_set(sweep.images, self.fov_rad, sweep.camera_angle_rad)
+        seen = gray_set(sweep.images, self.fov_rad, sweep.camera_angle_rad, sweep.imu_tilt_rad)
         decision = self.localizer.localize(seen, self.probes, exits, odometer_m)
         self.decisions[visit_id] = decision
         if self.on_decision is not None:

@@ -205,7 +205,8 @@ class _PlacedProbes:
         self.runner.clock_ns += _PROBE_MOVE_NS
         probe = (request.kind.value, request.yaw_rad, request.forward_m, request.left_m)
         self.runner.emit_sweep(sweep, self.visit_id, probe)
-        return gray_set(sweep.images, self.sink.camera.fov_rad, sweep.camera_angle_rad)
+        camera = self.sink.camera
+        return gray_set(sweep.images, camera.fov_rad, sweep.camera_angle_rad, sweep.imu_tilt_rad)
 
 
 class _PlacedRun:

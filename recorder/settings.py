@@ -54,8 +54,10 @@ class RecordSettings:
     motor_faults: int = 0
 
     def __post_init__(self) -> None:
-        what = (("--obstacles", self.obstacles, "a deposit"),)
-        what += (("--motor-faults", self.motor_faults, "a motor cut-out"),)
+        what = (
+            ("--obstacles", self.obstacles, "a deposit"),
+            ("--motor-faults", self.motor_faults, "a motor cut-out"),
+        )
         for flag, count, meets in what:
             if count < 0:
                 raise InputError(f"{flag} must be >= 0, got {count}")

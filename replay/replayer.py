@@ -234,6 +234,7 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
                         np.stack(sweep.frames),
                         fov_rad=start.fov_rad,
                         camera_angle_rad=start.camera_angle_rad,
+                        imu_tilt_rad=(start.imu_roll_rad, start.imu_pitch_rad),
                     )
                 except (PipemapError, ValueError) as exc:
                     skip(sweep, str(exc))

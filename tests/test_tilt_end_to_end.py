@@ -1,8 +1,9 @@
-"""A robot off level: the two-view fit's tilt refinement keeps revisit rotations right.
+"""A robot off level: the IMU's levelling, or without an IMU reading the two-view fit's
+tilt refinement, keeps revisit rotations right.
 
 Renders the paper's tour at 400 px with the robot tilted up to 3 degrees at each
-junction (about 15 s), and localizes it with and without the refinement
-(``benchmarks/bench_tilt.py`` measures more runs).
+junction (about 15 s), and localizes it with and without each
+(``benchmarks/bench_tilt.py`` and ``bench_tilt_log.py`` measure more runs).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ def tilted_tour() -> list:  # type: ignore[type-arg]
                 ImageSet(
                     np.stack([im.astype(np.float32) @ _GRAY for im in v.sweep.images]),
                     camera_angle_rad=v.sweep.camera_angle_rad,
+                    imu_tilt_rad=v.sweep.imu_tilt_rad,
                 ),
                 v.node,
                 v.pose.yaw_rad,
@@ -39,8 +41,13 @@ def tilted_tour() -> list:  # type: ignore[type-arg]
         ]
 
 
-def _revisit_errors(tour: list, refine: bool) -> list[float]:  # type: ignore[type-arg]
-    two_view = replace(TwoViewConfig(), tilt=refine)
+def _without_imu(tour: list) -> list:  # type: ignore[type-arg]
+    """The tour as sweeps without an IMU reading (as the paper's image sets are)."""
+    return [(replace(images, imu_tilt_rad=(0.0, 0.0)), node, yaw) for images, node, yaw in tour]
+
+
+def _revisit_errors(tour: list, refine: bool, imu_level: bool = True) -> list[float]:  # type: ignore[type-arg]
+    two_view = replace(TwoViewConfig(), tilt=refine, imu_level=imu_level)
     localizer = Localizer(LocalizerConfig(active_vision=False, lamp=True, two_view_config=two_view))
     first: dict[str, tuple[int, float]] = {}
     errors = []
@@ -57,8 +64,19 @@ def _revisit_errors(tour: list, refine: bool) -> list[float]:  # type: ignore[ty
 
 
 def test_the_tilt_refinement_earns_its_keep(tilted_tour: list) -> None:  # type: ignore[type-arg]
-    with_tilt = _revisit_errors(tilted_tour, refine=True)
-    level_only = _revisit_errors(tilted_tour, refine=False)
+    tour = _without_imu(tilted_tour)
+    with_tilt = _revisit_errors(tour, refine=True)
+    level_only = _revisit_errors(tour, refine=False)
     assert len(with_tilt) == 6
     assert max(with_tilt) <= 0.01
     assert max(level_only) > 0.02  # measured 0.038: the refinement is what keeps it right
+
+
+def test_the_imu_levelling_earns_its_keep(tilted_tour: list) -> None:  # type: ignore[type-arg]
+    assert any(images.imu_tilt_rad != (0.0, 0.0) for images, _, _ in tilted_tour)
+    levelled = _revisit_errors(tilted_tour, refine=False)
+    ignored = _revisit_errors(tilted_tour, refine=False, imu_level=False)
+    assert len(levelled) == 6
+    # Levelled by the IMU (its reading 0.002 rad off), no refinement is needed.
+    assert max(levelled) <= 0.01
+    assert max(ignored) > 0.02  # the same as a sweep without a reading

@@ -42,10 +42,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pipemap.batch.rules import RULES, Rule
 from pipemap.errors import InputError, SimError
 
 if TYPE_CHECKING:
-    from pipemap.localizer import LocalizerConfig
     from pipemap.recorder import RecordSettings
 
 __all__ = [
@@ -106,73 +106,6 @@ DEFAULTS: dict[str, Any] = {
 }
 #: ``pipemap score``'s threshold when none is given (without ``--robust``).
 SCORE_THRESHOLD = 0.36
-
-
-@dataclass(frozen=True)
-class Rule:
-    """A decision rule of the replayed localizer: a name, the ``pipemap score`` flags
-    that select it, and what it does."""
-
-    name: str
-    flags: tuple[str, ...]
-    description: str
-    distinct_consecutive: bool = True
-    two_view: bool = True
-    verify: bool = True
-
-    def config(self, threshold: float) -> LocalizerConfig:
-        """The localizer's settings of ``pipemap score FLAGS --threshold threshold``."""
-        from pipemap.localizer import LocalizerConfig
-
-        return LocalizerConfig(
-            threshold=threshold,
-            distinct_consecutive=self.distinct_consecutive,
-            two_view=self.two_view,
-            verify=self.verify,
-        )
-
-    def command(self) -> str:
-        """``pipemap score`` with this rule's flags, as a user would type it."""
-        return " ".join(("pipemap score", *self.flags))
-
-
-#: Every rule a SPEC may name. A test checks each against the command line's flags.
-RULES: dict[str, Rule] = {
-    rule.name: rule
-    for rule in (
-        Rule(
-            "default",
-            (),
-            "the two-view check decides known or new, the similarity "
-            "ranks the candidates and calls for probes, a visit is never the junction it "
-            "just left",
-        ),
-        Rule(
-            "paper",
-            ("--no-two-view", "--allow-repeat"),
-            "the paper's Algorithm 1: the similarity threshold decides, every known "
-            "junction competes, the rotation is the NCC peak shift's",
-            distinct_consecutive=False,
-            two_view=False,
-            verify=False,
-        ),
-        Rule(
-            "no-verify",
-            ("--no-verify",),
-            "the similarity threshold decides; the two-view rotation; a visit is never "
-            "the junction it just left",
-            verify=False,
-        ),
-        Rule(
-            "no-two-view",
-            ("--no-two-view",),
-            "the similarity threshold decides, the NCC rotation; a visit is never the "
-            "junction it just left",
-            two_view=False,
-            verify=False,
-        ),
-    )
-}
 
 
 class SpecError(InputError):

@@ -160,9 +160,9 @@ def _motor_faults(
     return draw_motor_faults(network, args.motor_faults, args.seed)
 
 
-def _run_autonomous(
+def _run_autonomous(  # type: ignore[no-untyped-def]
     args, network, camera, target: Path, out: TextIO, deposits=(), faults=()
-) -> int:  # type: ignore[no-untyped-def]
+) -> int:
     """The full exploration by the sensor-driven controller; sweeps are kept whatever
     ends it. With ``--explore map`` the localizer runs online and the robot explores
     its map; each sweep's ``sweep.txt`` then holds its exits and departure too."""

@@ -14,6 +14,7 @@ from pipemap.localizer.similarity import wrap_angle_rad
 from pipemap.localizer.twoview import (
     SweepFeatures,
     TwoViewConfig,
+    _levelling,
     _matches,
     fit_two_view,
     overlapping_images,
@@ -229,6 +230,36 @@ def test_a_sweep_off_level_still_gives_the_rotation(roll_rad: float, pitch_rad: 
     assert fit.tilt_rad == pytest.approx(math.hypot(roll_rad, pitch_rad), abs=0.005)
     # The check that decides known or new counts the planar fit's inliers.
     assert fit.inliers == planar.inliers
+
+
+@pytest.mark.parametrize(("roll_rad", "pitch_rad"), [(0.05, 0.0), (0.0, -0.04)])
+def test_the_imu_reading_levels_the_bearings(roll_rad: float, pitch_rad: float) -> None:
+    """What a camera on a body leaning as the IMU reads sees (:func:`_leaned`), levelled
+    by that reading, is what a level camera sees; ``imu_level`` off leaves it be."""
+    images = np.stack([_textured(30 + j) for j in range(6)])
+    level = sweep_features(ImageSet(images, camera_angle_rad=0.3))
+    seen = _leaned(level, roll_rad, pitch_rad).bearings
+    assert np.allclose(seen @ _levelling(roll_rad, pitch_rad).T, level.bearings, atol=1e-12)
+    # A sweep told the reading levels its bearings so.
+    told = ImageSet(images, camera_angle_rad=0.3, imu_tilt_rad=(roll_rad, pitch_rad))
+    levelled = sweep_features(told).bearings
+    assert np.allclose(levelled, level.bearings @ _levelling(roll_rad, pitch_rad).T, atol=1e-12)
+    assert not np.allclose(levelled, level.bearings, atol=1e-3)
+    untold = sweep_features(told, TwoViewConfig(imu_level=False)).bearings
+    assert np.array_equal(untold, level.bearings)
+
+
+def test_a_level_reading_changes_no_bearing() -> None:
+    images = np.stack([_textured(40 + j) for j in range(6)])
+    plain = sweep_features(ImageSet(images)).bearings
+    assert np.array_equal(sweep_features(ImageSet(images, imu_tilt_rad=(0.0, 0.0))).bearings, plain)
+
+
+def test_an_impossible_imu_reading_is_refused() -> None:
+    from pipemap.errors import LocalizerError
+
+    with pytest.raises(LocalizerError, match="imu_tilt_rad"):
+        ImageSet(np.zeros((6, 16, 16)), imu_tilt_rad=(2.0, 0.0))
 
 
 def test_level_sweeps_keep_the_planar_fit() -> None:
