@@ -160,6 +160,13 @@ def _motor_faults(
     return draw_motor_faults(network, args.motor_faults, args.seed)
 
 
+def _conditions(deposits: tuple[Obstacle, ...], faults: tuple[MotorFault, ...]) -> str:
+    """``N deposits``, ``N motor cut-outs``, or both, for the run's summary."""
+    parts = [f"{len(deposits)} deposits"] if deposits else []
+    parts += [f"{len(faults)} motor cut-outs"] if faults else []
+    return ", ".join(parts)
+
+
 def _run_autonomous(  # type: ignore[no-untyped-def]
     args, network, camera, target: Path, out: TextIO, deposits=(), faults=()
 ) -> int:
@@ -230,8 +237,8 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
         f"({driven}/{len(pipes)} pipes), "
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, {status}"
         + (
-            f"; {len(deposits)} deposits, {len(faults)} motor cut-outs: got past "
-            f"{recovered} stall(s), gave up {given_up} pipe(s) as blocked"
+            f"; {_conditions(deposits, faults)}: got past {recovered} stall(s), gave up "
+            f"{given_up} pipe(s) as blocked"
             if deposits or faults
             else ""
         )

@@ -218,7 +218,8 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     assert [type(p) for p in policies] == [MapPolicy, RightHandPolicy]
     assert "explore right-hand" in out
     # --motor-faults hands it the cut-outs drawn from the seed (none by default).
-    _run([*argv, "--motor-faults", "2", "--save-sweeps", str(tmp_path / "mf")], capfd)
+    _, out, _ = _run([*argv, "--motor-faults", "2", "--save-sweeps", str(tmp_path / "mf")], capfd)
+    assert "; 2 motor cut-outs: got past 0 stall(s), gave up 0 pipe(s)" in out
     from pipemap.sim.motor_faults import draw_motor_faults
     from pipemap.sim.network import build_network
 
