@@ -8,8 +8,8 @@ Renders the paper's network in placement conditions with the robot's roll and pi
 drawn at each visit within +-``--tilt-deg`` (``SimConfig.tilt_rad``), and level for
 comparison. Each run is localized visit by visit as ``pipemap map`` does (the
 default rules, no probes; the lamp's normalisation when lamp-lit) three ways:
-``imu``, each sweep told its IMU reading and levelled by it, then the tilt
-refinement (pipemap's defaults for a log); ``tilt``, no IMU reading (as the paper's
+``imu``, each sweep told its IMU reading and levelled by it, no tilt refinement
+needed (pipemap's defaults for a log); ``tilt``, no IMU reading (as the paper's
 image sets), the tilt refinement alone; ``level``, neither. Prints per run: wrong
 decisions, and the largest and median rotation error of the revisits recognised
 (the decision's two-view rotation against the true heading change).
@@ -72,7 +72,7 @@ def _run(data: dict, config: LocalizerConfig, imu: bool) -> tuple[int, list[floa
     wrong = 0
     errors: list[float] = []
     for i, (images, node) in enumerate(zip(data["images"], data["nodes"], strict=True)):
-        reading = tuple(float(v) for v in data["imu"][i]) if imu else (0.0, 0.0)
+        reading = (float(data["imu"][i][0]), float(data["imu"][i][1])) if imu else None
         query = ImageSet(images, camera_angle_rad=float(data["angles"][i]), imu_tilt_rad=reading)
         d = localizer.localize(query)
         if node in node_of:

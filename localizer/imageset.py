@@ -37,15 +37,16 @@ class ImageSet:
 
     ``imu_tilt_rad`` is the robot's (roll, pitch) during the sweep as its IMU reads
     them (roll about the forward axis, then pitch about the left one, nose down
-    positive): the two-view check levels the sweep's bearings by it. (0, 0), the
-    default, for a level robot or a sweep without an IMU reading.
+    positive), (0, 0) for a level robot: the two-view check levels the sweep's
+    bearings by it. ``None``, the default, for a sweep without an IMU reading (the
+    paper's image sets): the two-view fit then estimates the tilt itself.
     """
 
     images: np.ndarray
     fov_rad: float = DEFAULT_FOV_RAD
     keep_top_fraction: float = DEFAULT_KEEP_TOP_FRACTION
     camera_angle_rad: float = 0.0
-    imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
+    imu_tilt_rad: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         arr = np.asarray(self.images)
@@ -66,12 +67,13 @@ class ImageSet:
             )
         if not math.isfinite(self.camera_angle_rad):
             raise LocalizerError(f"camera_angle_rad must be finite, got {self.camera_angle_rad}")
-        roll, pitch = (float(v) for v in self.imu_tilt_rad)
-        if not (abs(roll) < math.pi / 2 and abs(pitch) < math.pi / 2):
-            raise LocalizerError(
-                f"imu_tilt_rad must be (roll, pitch) within 90 degrees, got {self.imu_tilt_rad}"
-            )
-        object.__setattr__(self, "imu_tilt_rad", (roll, pitch))
+        if self.imu_tilt_rad is not None:
+            roll, pitch = (float(v) for v in self.imu_tilt_rad)
+            if not (abs(roll) < math.pi / 2 and abs(pitch) < math.pi / 2):
+                raise LocalizerError(
+                    f"imu_tilt_rad must be (roll, pitch) within 90 degrees, got {self.imu_tilt_rad}"
+                )
+            object.__setattr__(self, "imu_tilt_rad", (roll, pitch))
         if int(round(h * self.keep_top_fraction)) < 2:
             raise LocalizerError(
                 f"keep_top_fraction {self.keep_top_fraction} keeps fewer than 2 rows of {h}"

@@ -121,7 +121,8 @@ class TwoViewConfig:
     min_inliers: int = 12
     min_inlier_share: float = 0.1
     refine_iterations: int = 6
-    #: Refine the rotation with the relative tilt of the two sweeps free.
+    #: Refine the rotation with the relative tilt of the two sweeps free (unless both
+    #: were levelled by their IMU readings, see :attr:`imu_level`).
     tilt: bool = True
     #: Its tolerances, in pixels, tightened in turn (a few iterations each), and the
     #: largest relative tilt taken as real (more is a fit gone astray).
@@ -134,7 +135,8 @@ class TwoViewConfig:
     tilt_min_gain: float = 1.2
     #: Level each sweep's bearings by its IMU's roll and pitch
     #: (:attr:`ImageSet.imu_tilt_rad`) before matching: the planar fit then holds for
-    #: a robot off level, and the tilt refinement is left with the IMU's error.
+    #: a robot off level, and the tilt refinement (:attr:`tilt`), left with only the
+    #: IMU's error, is made only when a sweep has no reading.
     imu_level: bool = True
 
 
@@ -158,6 +160,8 @@ class SweepFeatures:
     image: np.ndarray | None = None
     image_azimuth_rad: np.ndarray | None = None
     fov_rad: float | None = None
+    #: The bearings were levelled by the sweep's IMU reading (level already).
+    levelled: bool = False
 
     def __len__(self) -> int:
         return len(self.bearings)
@@ -227,8 +231,9 @@ class StoredFeatures:
     fov_rad: float
     camera_angle_rad: float
     factor: int
-    #: The IMU's (roll, pitch) of the sweep: the bearings are levelled by it.
-    imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
+    #: The IMU's (roll, pitch) of the sweep: the bearings are levelled by it
+    #: (``None``: no reading, or not used).
+    imu_tilt_rad: tuple[float, float] | None = None
 
     @property
     def nbytes(self) -> int:
@@ -244,9 +249,10 @@ class StoredFeatures:
         focal_px = (w / 2.0) / math.tan(self.fov_rad / 2.0)
         pixel_rad = self.factor / focal_px
         looks = self.camera_angle_rad - np.arange(n, dtype=np.float64) * 2.0 * math.pi / n
+        levelled = self.imu_tilt_rad is not None
         if len(self.points) == 0:
             empty = np.zeros((0, 3)), np.zeros((0, 32), np.uint8), pixel_rad
-            return SweepFeatures(*empty, self.image, looks, self.fov_rad)
+            return SweepFeatures(*empty, self.image, looks, self.fov_rad, levelled)
         # OpenCV puts pixel 0's centre at 0.0; the image centre is at (w - 1) / 2.
         uv = self.points.astype(np.float64)
         if self.factor != 1:
@@ -258,9 +264,11 @@ class StoredFeatures:
         horizontal = np.hypot(focal_px, x)
         rays = np.stack([np.cos(azimuth) * horizontal, np.sin(azimuth) * horizontal, y], axis=1)
         bearings = rays / np.linalg.norm(rays, axis=1, keepdims=True)
-        if self.imu_tilt_rad != (0.0, 0.0):
+        if self.imu_tilt_rad is not None and self.imu_tilt_rad != (0.0, 0.0):
             bearings = bearings @ _levelling(*self.imu_tilt_rad).T
-        return SweepFeatures(bearings, self.descriptors, pixel_rad, self.image, looks, self.fov_rad)
+        return SweepFeatures(
+            bearings, self.descriptors, pixel_rad, self.image, looks, self.fov_rad, levelled
+        )
 
 
 def detection_factor(width_px: int, config: TwoViewConfig) -> int:
@@ -327,7 +335,7 @@ def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) ->
         fov_rad=image_set.fov_rad,
         camera_angle_rad=image_set.camera_angle_rad,
         factor=factor,
-        imu_tilt_rad=image_set.imu_tilt_rad if config.imu_level else (0.0, 0.0),
+        imu_tilt_rad=image_set.imu_tilt_rad if config.imu_level else None,
     )
 
 
@@ -452,7 +460,10 @@ def fit_two_view(
         inliers=count,
         matches=len(a),
     )
-    if not config.tilt:
+    if not config.tilt or (query.levelled and known.levelled):
+        # Levelled by their IMUs, the two sweeps are left with only the IMU's error:
+        # too little tilt for the refinement to find (it would not gain the inliers
+        # it must), and 5-6 ms a revisit saved.
         return fit
     # The second start: the azimuth peak, with its best direction of motion.
     peak = centres[0]

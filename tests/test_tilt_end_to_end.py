@@ -43,7 +43,7 @@ def tilted_tour() -> list:  # type: ignore[type-arg]
 
 def _without_imu(tour: list) -> list:  # type: ignore[type-arg]
     """The tour as sweeps without an IMU reading (as the paper's image sets are)."""
-    return [(replace(images, imu_tilt_rad=(0.0, 0.0)), node, yaw) for images, node, yaw in tour]
+    return [(replace(images, imu_tilt_rad=None), node, yaw) for images, node, yaw in tour]
 
 
 def _revisit_errors(tour: list, refine: bool, imu_level: bool = True) -> list[float]:  # type: ignore[type-arg]
@@ -73,6 +73,7 @@ def test_the_tilt_refinement_earns_its_keep(tilted_tour: list) -> None:  # type:
 
 
 def test_the_imu_levelling_earns_its_keep(tilted_tour: list) -> None:  # type: ignore[type-arg]
+    assert all(images.imu_tilt_rad is not None for images, _, _ in tilted_tour)
     assert any(images.imu_tilt_rad != (0.0, 0.0) for images, _, _ in tilted_tour)
     levelled = _revisit_errors(tilted_tour, refine=False)
     ignored = _revisit_errors(tilted_tour, refine=False, imu_level=False)

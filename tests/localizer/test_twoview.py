@@ -249,6 +249,34 @@ def test_the_imu_reading_levels_the_bearings(roll_rad: float, pitch_rad: float) 
     assert np.array_equal(untold, level.bearings)
 
 
+def test_sweeps_both_levelled_by_their_imus_skip_the_tilt_refinement(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Left with only the IMU's error there is no tilt to find: the refinement is made
+    only when a sweep has no reading."""
+    from pipemap.localizer import twoview
+
+    calls: list[int] = []
+    real = twoview._tilted
+
+    def spy(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(twoview, "_tilted", spy)
+    query, known = _pair(np.random.default_rng(13), 1.1, 0.2, (-0.03, 0.015), outliers=150)
+    levelled = [replace(f, levelled=True) for f in (query, known)]
+    assert fit_two_view(*levelled) is not None and calls == []
+    assert fit_two_view(levelled[0], known) is not None and calls == [1]
+    assert fit_two_view(query, known) is not None and calls == [1, 1]
+    # Real sweeps: levelled exactly when told a reading (a level one included).
+    images = np.stack([_textured(50 + j) for j in range(6)])
+    assert sweep_features(ImageSet(images, imu_tilt_rad=(0.0, 0.0))).levelled
+    assert not sweep_features(ImageSet(images)).levelled
+    told = ImageSet(images, imu_tilt_rad=(0.02, 0.0))
+    assert not sweep_features(told, TwoViewConfig(imu_level=False)).levelled
+
+
 def test_a_level_reading_changes_no_bearing() -> None:
     images = np.stack([_textured(40 + j) for j in range(6)])
     plain = sweep_features(ImageSet(images)).bearings
