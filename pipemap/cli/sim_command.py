@@ -91,8 +91,7 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         align_sweeps=args.align_sweeps,
         tilt_rad=math.radians(args.tilt_deg),
     )
-    deposits = _deposits(args, network, condition)
-    faults = _motor_faults(args, network, condition)
+    deposits, faults = _real_conditions(args, network, condition)
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
         return _run_autonomous(args, network, camera, target, out, deposits, faults)
@@ -126,38 +125,37 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     return 0 if tour.complete else 1
 
 
-def _deposits(
+def _real_conditions(
     args: argparse.Namespace, network: Network, condition: Condition
-) -> tuple[Obstacle, ...]:
-    """The floor deposits of ``--obstacles`` (autonomous only), checked before any work."""
+) -> tuple[tuple[Obstacle, ...], tuple[MotorFault, ...]]:
+    """The floor deposits of ``--obstacles`` and the motor cut-outs of
+    ``--motor-faults`` (autonomous only), checked before any work."""
     from pipemap.errors import SimError
     from pipemap.sim.episode import Condition
+    from pipemap.sim.motor_faults import draw_motor_faults
     from pipemap.sim.obstacles import place_obstacles
 
-    if args.obstacles and condition is not Condition.AUTONOMOUS:
-        raise InputError(
-            "--obstacles: only the autonomous robot drives into deposits; placed by "
-            f"hand ({condition.value}) it never meets one"
-        )
+    if condition is not Condition.AUTONOMOUS:
+        placed = f"placed by hand ({condition.value})"
+        for count, why in (
+            (
+                args.obstacles,
+                f"--obstacles: only the autonomous robot drives into deposits; "
+                f"{placed} it never meets one",
+            ),
+            (
+                args.motor_faults,
+                f"--motor-faults: only the autonomous robot drives; {placed} "
+                "its motors never cut out",
+            ),
+        ):
+            if count:
+                raise InputError(why)
     try:
-        return place_obstacles(network, args.obstacles, args.seed)
+        deposits = place_obstacles(network, args.obstacles, args.seed)
     except SimError as error:
         raise InputError(f"--obstacles {args.obstacles}: {error}") from None
-
-
-def _motor_faults(
-    args: argparse.Namespace, network: Network, condition: Condition
-) -> tuple[MotorFault, ...]:
-    """The motor cut-outs of ``--motor-faults`` (autonomous only), before any work."""
-    from pipemap.sim.episode import Condition
-    from pipemap.sim.motor_faults import draw_motor_faults
-
-    if args.motor_faults and condition is not Condition.AUTONOMOUS:
-        raise InputError(
-            "--motor-faults: only the autonomous robot drives; placed by hand "
-            f"({condition.value}) its motors never cut out"
-        )
-    return draw_motor_faults(network, args.motor_faults, args.seed)
+    return deposits, draw_motor_faults(network, args.motor_faults, args.seed)
 
 
 def _conditions(deposits: tuple[Obstacle, ...], faults: tuple[MotorFault, ...]) -> str:

@@ -1,5 +1,5 @@
 """Runs whose motors cut out, end to end: ``record --motor-faults``, the log's settings,
-``info``, ``score``, and the bad input refused before any work."""
+``info`` and ``score`` (bad ``--motor-faults`` values: test_obstacle_runs.py)."""
 
 from __future__ import annotations
 
@@ -55,32 +55,3 @@ def test_the_log_names_its_cut_outs_and_a_run_without_them_does_not(
     assert "motor_faults" not in json.loads(plain["simulator"])
     assert main(["info", str(path)]) == 0
     assert ", 3 motor cut-outs" in capsys.readouterr().out
-
-
-@pytest.mark.parametrize("command", ["record", "sim"])
-@pytest.mark.parametrize(
-    ("extra", "says"),
-    [
-        (["--motor-faults", "-1"], "argument --motor-faults: a cut-out count must be >= 0"),
-        (["--motor-faults", "1", "--condition", "perfect"], "--motor-faults: only the autonomous"),
-    ],
-)
-def test_bad_cut_out_settings_are_one_line_and_exit_2(
-    command: str,
-    extra: list[str],
-    says: str,
-    tmp_path: Path,
-    capfd: pytest.CaptureFixture[str],
-) -> None:
-    output = ["-o", str(tmp_path / "x.mcap")] if command == "record" else []
-    if command == "sim":
-        output = ["--save-sweeps", str(tmp_path / "sweeps")]
-        extra = ["--condition", "autonomous", *extra] if "--condition" not in extra else extra
-    try:
-        status = main([command, "--network", "paper", *extra, *output])
-    except SystemExit as exc:  # argparse errors
-        status = int(exc.code or 0)
-    err = capfd.readouterr().err
-    assert status == 2
-    assert err.count("\n") == 1 and says in err, err
-    assert not (tmp_path / "x.mcap").exists() and not (tmp_path / "sweeps").exists()

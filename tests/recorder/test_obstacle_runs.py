@@ -123,9 +123,11 @@ def _run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str]:
         (["--obstacles", "x"], "argument --obstacles: not a number"),
         (["--obstacles", "40"], "--obstacles 40:"),
         (["--obstacles", "1", "--condition", "perfect"], "--obstacles: only the autonomous"),
+        (["--motor-faults", "-1"], "argument --motor-faults: a cut-out count must be >= 0"),
+        (["--motor-faults", "1", "--condition", "perfect"], "--motor-faults: only the autonomous"),
     ],
 )
-def test_bad_obstacle_settings_are_one_line_and_exit_2(
+def test_bad_deposit_and_cut_out_settings_are_one_line_and_exit_2(
     command: str,
     extra: list[str],
     says: str,
