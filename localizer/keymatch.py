@@ -19,22 +19,36 @@ if TYPE_CHECKING:
 __all__ = ["overlapping_images"]
 
 
-def _ratio_matches(a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+def _words(descriptors: np.ndarray) -> np.ndarray:
+    """ORB descriptors ``(M, 32)`` uint8 as their four 64-bit words, word by word:
+    ``(4, M)``, each row contiguous (what :func:`_ratio_matches` sweeps)."""
+    return np.ascontiguousarray(np.ascontiguousarray(descriptors).view(np.uint64).T)
+
+
+def _ratio_matches(
+    a: np.ndarray, b: np.ndarray, ratio: float, words_a: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Indices into descriptors ``a`` and ``b`` of the pairs that pass the ratio test
     (each of ``b``'s keypoints with its nearest in ``a``), in ``b``'s order.
+    ``words_a``, if given, is ``_words(a)``, made once by the caller.
 
     The Hamming distances are counted by numpy on the descriptors' four 64-bit words:
     1.5 to 2.5 times faster than OpenCV's brute-force ``knnMatch`` on a few hundred
     keypoints, with the very same pairs (the nearest is unique wherever the test
-    passes, so how ties are broken does not matter).
+    passes, so how ties are broken does not matter). ``a``'s words lie word by word
+    and two words' counts are added in bytes (at most 128) before the wider sum: a
+    quarter less time than one word at a time into 16 bits, the same distances.
     """
     if len(a) < 2 or len(b) < 1:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    words_a = np.ascontiguousarray(a).view(np.uint64)
-    words_b = np.ascontiguousarray(b).view(np.uint64)
-    distance = np.bitwise_count(words_b[:, None, 0] ^ words_a[None, :, 0]).astype(np.int16)
-    for w in range(1, words_a.shape[1]):
-        distance += np.bitwise_count(words_b[:, None, w] ^ words_a[None, :, w])
+    wa = _words(a) if words_a is None else words_a
+    wb = np.ascontiguousarray(b).view(np.uint64)
+    low = np.bitwise_count(wb[:, 0, None] ^ wa[0])
+    low += np.bitwise_count(wb[:, 1, None] ^ wa[1])
+    high = np.bitwise_count(wb[:, 2, None] ^ wa[2])
+    high += np.bitwise_count(wb[:, 3, None] ^ wa[3])
+    distance = low.astype(np.int16)
+    distance += high
     rows = np.arange(len(b))
     nearest = np.argmin(distance, axis=1)
     best = distance[rows, nearest].astype(np.float64)
@@ -87,6 +101,7 @@ def _matches(
         ia, ib = _ratio_matches(a.descriptors, b.descriptors[chosen], ratio)
         return ia, chosen[ib]
     found_a, found_b = [], []
+    words_a = _words(a.descriptors)  # once: each image of b takes its columns
     member = np.zeros(max(len(overlap), int(a.image.max()) + 1), dtype=bool)
     for k, images in enumerate(overlap):
         mine = b.image == k
@@ -94,7 +109,7 @@ def _matches(
         member[:] = False
         member[images] = True
         in_a = np.flatnonzero(member[a.image])
-        ia, ib = _ratio_matches(a.descriptors[in_a], b.descriptors[in_b], ratio)
+        ia, ib = _ratio_matches(a.descriptors[in_a], b.descriptors[in_b], ratio, words_a[:, in_a])
         found_a.append(in_a[ia])
         found_b.append(in_b[ib])
     return np.concatenate(found_a), np.concatenate(found_b)

@@ -14,7 +14,7 @@ import pytest
 
 from pipemap.localizer import keymatch, twoview
 from pipemap.localizer.fastmatch import FastMatcher
-from pipemap.localizer.keymatch import _ratio_matches
+from pipemap.localizer.keymatch import _ratio_matches, _words
 from pipemap.localizer.twoview import TwoViewConfig, fit_two_view, sweep_features
 from tests.conftest import PaperSet
 
@@ -47,6 +47,23 @@ def test_hamming_matcher_gives_opencvs_pairs(seed: int) -> None:
         ja, jb = _opencv_ratio_matches(a, b, ratio)
         assert len(ia) > 0
         assert np.array_equal(ia, ja) and np.array_equal(ib, jb)
+        ka, kb = _ratio_matches(a, b, ratio, _words(a))  # the words made by the caller
+        assert np.array_equal(ka, ja) and np.array_equal(kb, jb)
+
+
+def test_hamming_distances_up_to_all_256_bits() -> None:
+    """Distances are counted two words to a byte (at most 128 each) before the
+    sum: a descriptor's complement is 256 away, never 0."""
+    rng = np.random.default_rng(9)
+    a = rng.integers(0, 256, (40, 32), dtype=np.uint8)
+    b = np.concatenate([~a[:10], a[10:20]])  # complements first, then copies
+    ia, ib = _ratio_matches(a, b, 0.99)
+    ja, jb = _opencv_ratio_matches(a, b, 0.99)
+    assert np.array_equal(ia, ja) and np.array_equal(ib, jb)
+    copies = ib >= 10
+    assert np.array_equal(ia[copies], ib[copies])  # a copy's nearest is its original
+    words_b = np.ascontiguousarray(b[:1]).view(np.uint64)
+    assert sum(int(w).bit_count() for w in (words_b ^ _words(a)[:, :1].T)[0]) == 256
 
 
 def test_hamming_matcher_needs_two_to_compare() -> None:
@@ -95,9 +112,11 @@ def seen(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     counts: list[int] = []
     real = keymatch._ratio_matches
 
-    def counting(a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+    def counting(
+        a: np.ndarray, b: np.ndarray, ratio: float, words_a: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         counts.append(len(b))
-        return real(a, b, ratio)
+        return real(a, b, ratio, words_a)
 
     monkeypatch.setattr(keymatch, "_ratio_matches", counting)
     return counts
