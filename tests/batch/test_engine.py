@@ -7,6 +7,8 @@ from __future__ import annotations
 import csv
 import json
 import os
+import subprocess
+import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -147,3 +149,34 @@ def test_failures_are_retried_once_then_recorded(ray_here: None, tmp_path: Path)
     assert {p.name.split("-")[0] for p in marks.iterdir()} == {"seed2", "seed3"}
     table = json.loads((out / "results.json").read_text())
     assert table["runs_finished"] == 8 and table["runs_failed"] == 4
+
+
+def threads_reported(points: Sequence[RunPoint], keep_log: bool) -> dict[str, Any]:
+    """A run that succeeds and says, as its worker, how many threads OpenCV has."""
+    import cv2
+
+    return {**stand_in(points, keep_log), "worker": f"cv2-threads={cv2.getNumThreads()}"}
+
+
+def test_a_batch_task_keeps_opencv_to_its_one_core(ray_here: None, tmp_path: Path) -> None:
+    """Each task has one core: OpenCV's thread pool, which starts a thread per core of
+    the machine whatever Ray says, is held to one thread in a batch's task."""
+    global MARKS
+    from ray import cloudpickle
+
+    cloudpickle.register_pickle_by_value(__import__(__name__))
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    MARKS = str(marks)
+
+    # The premise: a process as Ray starts a worker (OMP_NUM_THREADS=1) gets more.
+    # (Not asked of a Ray worker: one that ran a batch's task before keeps its one.)
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    code = "import cv2; print(cv2.getNumThreads())"
+    plain = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert int(plain.stdout) > 1
+    spec = parse_spec(SPEC.replace("[0, 1, 2, 3]", "[0]"), "threads.toml")
+    out = tmp_path / "out"
+    run_batch(plan_batch(spec, out, BatchOptions()), None, task=threads_reported)
+    workers = {json.loads(p.read_text())["worker"] for p in out.glob("runs/*/result.json")}
+    assert workers == {"cv2-threads=1"}

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import pytest
 
 from pipemap import __version__
@@ -19,15 +20,25 @@ def no_writer_process(*args: object, **kwargs: object) -> None:
     raise AssertionError("a writer process was started")
 
 
+@pytest.mark.parametrize("one_thread", [False, True])
 def test_inline_writes_the_bytes_of_the_writer_process(
-    recorded_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    recorded_run: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, one_thread: bool
 ) -> None:
+    """Also with OpenCV held to one thread, as a batch's task holds it."""
     # recorded_run is `pipemap record` with tests.logs.SMALL_RUN: paper, 64 px, seed 3,
     # its log written by a writer process.
     monkeypatch.setattr(session, "BackgroundWriter", no_writer_process)
     path = tmp_path / "inline.mcap"
     settings = RecordSettings("paper", seed=3, resolution_px=64)
-    result = record_run(path, settings, build_network("paper", seed=3), __version__, inline=True)
+    threads = cv2.getNumThreads()
+    if one_thread:
+        assert threads > 1  # else the case shows nothing
+        cv2.setNumThreads(1)
+    try:
+        network = build_network("paper", seed=3)
+        result = record_run(path, settings, network, __version__, inline=True)
+    finally:
+        cv2.setNumThreads(threads)
     assert result.ok
     assert path.read_bytes() == recorded_run.read_bytes()
     assert result.messages == len(read_log(path).messages)
