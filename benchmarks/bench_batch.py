@@ -1,6 +1,7 @@
 """Throughput of ``pipemap batch``: 2 workers against the same runs one after another.
 
     python benchmarks/bench_batch.py [--resolution PX] [--workers N] [--keep DIR]
+                                     [--floor] [--address RAY_ADDRESS]
 
 The SPEC has 12 runs, each its own recording (``paper`` and ``random:8``, seeds 0-2,
 ``perfect`` and ``autonomous``, 64 px, pipemap's default rule). Three measurements,
@@ -13,6 +14,15 @@ in one process, one after the other:
    record`` writes it (quicker for a run alone: it uses more than one core);
 3. batch: ``pipemap batch SPEC --out DIR --workers 2`` as a user runs it, end to end
    (Python's start-up, Ray's start-up on this machine, the runs, the table).
+
+Two more, if asked:
+
+4. ``--floor``: the runs handed out as the batch hands them out (costliest first, in
+   turn) to two plain Python processes, no engine at all, OpenCV on one thread each:
+   what any scheduler could at best do with these runs on this machine;
+5. ``--address``: ``pipemap batch SPEC --out DIR --address RAY_ADDRESS`` against a Ray
+   cluster already running (``ray start --head ...``): no start or stop of Ray in the
+   batch's time.
 
 The issue's target: (3) takes at most 0.6 x the quicker of (1) and (2). Wall time is
 what a user waits; since the machine may be shared, the load average (``uptime``) is printed before
@@ -87,24 +97,51 @@ def sequential(spec_path: Path, inline: bool) -> tuple[float, float, float]:
     return wall, _cpu_self() + _cpu_children() - cpu0, task_cpu
 
 
-def batch(spec_path: Path, out: Path, workers: int) -> tuple[float, float, float]:
+def _child(spec_path: Path, indices: list[int]) -> None:
+    """Part of ``--floor``: the given runs one after another, OpenCV on one thread."""
+    import cv2
+
+    from pipemap.batch import load_spec
+    from pipemap.batch.run import run_recording
+
+    cv2.setNumThreads(1)
+    points = load_spec(spec_path).points
+    for i in indices:
+        run_recording([points[i]], inline=True)
+
+
+def floor(spec_path: Path, processes: int) -> tuple[float, float]:
+    """Wall s and CPU s of the runs split among plain processes as the batch hands
+    them out (costliest first, in turn), no engine."""
+    from pipemap.batch import load_spec
+    from pipemap.batch.engine import _recordings
+
+    points = load_spec(spec_path).points
+    order = [points.index(group[0]) for group in _recordings(points)]
+    cpu0 = _cpu_children()
+    started = time.perf_counter()
+    children = [
+        subprocess.Popen(
+            [sys.executable, __file__, "--child", str(spec_path), json.dumps(order[k::processes])]
+        )
+        for k in range(processes)
+    ]
+    if any(child.wait() != 0 for child in children):
+        sys.exit("--floor: a plain process failed")
+    return time.perf_counter() - started, _cpu_children() - cpu0
+
+
+def batch(
+    spec_path: Path, out: Path, workers: int, address: str | None = None
+) -> tuple[float, float, float]:
     """Wall s of ``pipemap batch`` end to end, the CPU s of its process tree that
     this process could account (a lower bound: Ray's workers are not its children),
     and the sum of the runs' own CPU figures."""
     cpu0 = _cpu_children()
     started = time.perf_counter()
+    where = ["--workers", str(workers)] if address is None else ["--address", address]
     done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "pipemap",
-            "batch",
-            str(spec_path),
-            "--out",
-            str(out),
-            "--workers",
-            str(workers),
-        ],
+        [sys.executable, "-m", "pipemap", "batch", str(spec_path), "--out", str(out), *where],
         capture_output=True,
         text=True,
     )
@@ -124,7 +161,17 @@ def main() -> int:
     parser.add_argument("--resolution", type=int, default=64)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--keep", type=Path, default=None, help="keep the batch folder here")
+    parser.add_argument(
+        "--floor", action="store_true", help="also the runs in plain processes, no engine"
+    )
+    parser.add_argument(
+        "--address", default=None, help="also the batch against this running Ray cluster"
+    )
+    parser.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.child is not None:
+        _child(Path(args.child[0]), json.loads(args.child[1]))
+        return 0
 
     tmp = Path(tempfile.mkdtemp(prefix="pipemap-bench-batch-"))
     try:
@@ -168,6 +215,18 @@ def main() -> int:
             f"runs' CPU, batch / sequential   : {b_task / s_task:.2f} "
             "(above 1: the runs did the same work slower, e.g. sharing cores)"
         )
+        if args.floor:
+            f_wall, f_cpu = floor(spec_path, args.workers)
+            print(
+                f"{args.workers} plain processes, no engine: {f_wall:7.1f} s wall, {f_cpu:6.1f} s "
+                f"CPU; / sequential: {f_wall / best:.2f} (the best a scheduler could do here)"
+            )
+        if args.address is not None:
+            a_wall, _, _ = batch(spec_path, tmp / "batch-address", args.workers, args.address)
+            print(
+                f"pipemap batch --address        : {a_wall:7.1f} s wall (Ray already running); "
+                f"/ sequential: {a_wall / best:.2f}"
+            )
         if args.keep is not None:
             shutil.copytree(out, args.keep, dirs_exist_ok=True)
     finally:
