@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import resource
+import shutil
 import socket
 import tempfile
 import time
@@ -26,6 +27,37 @@ __all__ = ["LOG_NAME", "run_recording"]
 
 #: The log's name, in the worker's folder and in ``runs/<run-id>/`` with ``--keep-logs``.
 LOG_NAME = "run.mcap"
+
+
+#: The start of a task's folder's name; the host and the process follow, so that a
+#: later task can tell the folders of processes that are gone.
+SCRATCH_PREFIX = "pipemap-batch-"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: alive
+        return True
+    return True
+
+
+def sweep_stale_folders(root: Path | None = None) -> list[Path]:
+    """Remove the task folders that processes of this host left when they were ended
+    without cleaning up (a batch stopped by Ctrl-C: Ray ends its workers mid-run, and
+    each leaves a partial log that may be a hundred MB). Returns what was removed.
+    A folder of a live process, or of another host, is left alone."""
+    root = Path(tempfile.gettempdir()) if root is None else root
+    mine = f"{SCRATCH_PREFIX}{socket.gethostname()}-"
+    removed = []
+    for path in root.glob(f"{mine}*"):
+        pid = path.name[len(mine) :].split("-", 1)[0]
+        if path.is_dir() and pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(path, ignore_errors=True)
+            removed.append(path)
+    return removed
 
 
 def _cpu_s() -> float:
@@ -83,7 +115,9 @@ def run_recording(
         raise ValueError("run_recording: the points do not share one recording")
     cpu = _cpu_s()
     started = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="pipemap-batch-") as tmp:
+    sweep_stale_folders()
+    prefix = f"{SCRATCH_PREFIX}{socket.gethostname()}-{os.getpid()}-"
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
         path = Path(tmp) / LOG_NAME
         settings = first.record_settings()
         network = build_network(settings.network, seed=settings.seed)
