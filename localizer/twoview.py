@@ -76,13 +76,8 @@ __all__ = [
 class TwoViewConfig:
     """Settings of keypoints, matching and the motion fit."""
 
-    #: ORB keypoints kept per image, of images ORB sees at their own size (at most
-    #: ``detect_width_px`` wide). 800 until this round: images of 96-200 px then kept
-    #: 340-570 each, more than a 400 px image keeps after its reduction, and the
-    #: Hamming matching, which grows with the square, made a decision at the defaults
-    #: 62-140 ms. With 250, 19-30 ms, and the same 262 decisions on six logs of 96,
-    #: 128 and 200 px (docs/performance.md).
-    keypoints_per_image: int = 250
+    #: ORB keypoints kept per image.
+    keypoints_per_image: int = 800
     #: Wider images are reduced by an integer factor to at most this width before
     #: ORB sees them, and keep ``reduced_keypoints_per_image`` each (see
     #: :func:`stored_features`).

@@ -18,7 +18,6 @@ from pipemap.localizer.twoview import (
     _matches,
     fit_two_view,
     overlapping_images,
-    stored_features,
     sweep_features,
 )
 
@@ -177,24 +176,6 @@ def test_keypoints_lie_in_their_images_field_of_view() -> None:
     off_axis = np.abs(np.remainder(azimuth[:, None] - centres + math.pi, 2 * math.pi) - math.pi)
     assert np.all(off_axis.min(axis=1) <= fov / 2)
     assert np.all(features.bearings[:, 2] > -1e-9)  # the top half only: at or above the horizon
-
-
-@pytest.mark.parametrize("size", [200, 400])
-def test_every_image_keeps_at_most_its_keypoints_as_orb_sees_it(size: int) -> None:
-    """At the defaults an image keeps at most 250 keypoints, whether ORB sees it at its
-    own size (200 px) or reduced (400 px); ``keypoints_per_image`` sets the first."""
-    images = np.stack([_textured(j, size) for j in range(6)])
-    image_set = ImageSet(images, fov_rad=math.radians(80.0), keep_top_fraction=0.5)
-    config = TwoViewConfig()
-    per_image = np.bincount(stored_features(image_set, config).image, minlength=6)
-    assert per_image.max() <= 250 and per_image.min() > 50
-    more = np.bincount(
-        stored_features(image_set, replace(config, keypoints_per_image=800)).image, minlength=6
-    )
-    if size <= config.detect_width_px:
-        assert more.min() > 250  # the setting is what holds them
-    else:
-        assert np.array_equal(more, per_image)  # reduced: reduced_keypoints_per_image
 
 
 def test_camera_angle_turns_every_bearing() -> None:
