@@ -18,6 +18,7 @@ from pipemap.localizer.twoview import (
     _matches,
     fit_two_view,
     overlapping_images,
+    stored_features,
     sweep_features,
 )
 
@@ -176,6 +177,28 @@ def test_keypoints_lie_in_their_images_field_of_view() -> None:
     off_axis = np.abs(np.remainder(azimuth[:, None] - centres + math.pi, 2 * math.pi) - math.pi)
     assert np.all(off_axis.min(axis=1) <= fov / 2)
     assert np.all(features.bearings[:, 2] > -1e-9)  # the top half only: at or above the horizon
+
+
+@pytest.mark.parametrize("size", [200, 400])
+def test_the_keypoints_an_image_keeps_depend_on_the_width_orb_sees(size: int) -> None:
+    """An image ORB sees at its own size (200 px) keeps up to ``keypoints_per_image``
+    keypoints; a wider one (400 px) is reduced first and keeps up to
+    ``reduced_keypoints_per_image``, whatever ``keypoints_per_image`` says."""
+    images = np.stack([_textured(j, size) for j in range(6)])
+    image_set = ImageSet(images, fov_rad=math.radians(80.0), keep_top_fraction=0.5)
+    config = TwoViewConfig()
+    kept = {
+        n: np.bincount(
+            stored_features(image_set, replace(config, keypoints_per_image=n)).image,
+            minlength=6,
+        )
+        for n in (150, config.keypoints_per_image)
+    }
+    if size <= config.detect_width_px:
+        assert kept[150].max() <= 150 < kept[config.keypoints_per_image].min()
+    else:
+        assert np.array_equal(kept[150], kept[config.keypoints_per_image])
+        assert kept[150].max() <= config.reduced_keypoints_per_image
 
 
 def test_camera_angle_turns_every_bearing() -> None:
