@@ -49,6 +49,10 @@ def pipemap(*args: str, env: dict[str, str] | None = None) -> subprocess.Complet
     )
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _finished_runs(out: Path) -> list[Path]:
     runs = out / "runs"
     if not runs.is_dir():
@@ -71,13 +75,16 @@ def local(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, s
     finished, then resumed. Returns the folder and the two commands' stderr."""
     out = tmp_path_factory.mktemp("local") / "batch"
     command = [sys.executable, "-m", "pipemap", "batch", str(spec), "--out", str(out)]
-    # Ctrl-C as a terminal sends it: to the whole process group.
+    # Ctrl-C as a terminal sends it: to the whole process group. The batch starts
+    # with Ctrl-C's default action, as from a terminal: run from a background job
+    # (`pytest &`), this process ignores SIGINT, and a child would inherit that.
     first = subprocess.Popen(
         [*command, "--keep-logs"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=_default_sigint,
     )
     try:
         deadline = time.monotonic() + 600
