@@ -42,6 +42,7 @@ from pipemap.localizer.decision import (
 from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
 from pipemap.localizer.illumination import IlluminationConfig, normalised
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.keymatch import MatchCache
 from pipemap.localizer.ports import PORT_TOLERANCE_RAD, PortMatch, clockwise_ports, match_ports
 from pipemap.localizer.ports import nearest_exit as _nearest_exit
 from pipemap.localizer.presets import PAPER_THRESHOLD
@@ -431,9 +432,11 @@ class Localizer:
                 min_inliers=max(self.config.two_view_config.min_inliers, needed),
             )
             known = self._features[i].features()
-            fit = fit_two_view(features, known, config, matches[i].rotation_rad)
+            # The lamp's second fit (at any rotation) reuses the first's distances.
+            cache = _match_cache(features) if self.config.lamp else None
+            fit = fit_two_view(features, known, config, matches[i].rotation_rad, cache=cache)
             if self.config.lamp and (fit is None or fit.inliers < needed):
-                fit = fit_two_view(features, known, config, None)
+                fit = fit_two_view(features, known, config, None, cache=cache)
             if fit is not None and fit.inliers >= needed:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
                 if ports is not None and not ports.agrees and self.config.port_check:
@@ -441,3 +444,9 @@ class Localizer:
                     continue
                 return i, fit, ports
         return None
+
+
+def _match_cache(query: SweepFeatures) -> MatchCache | None:
+    """A cache of a pair of sweeps' keypoint distances, if the query says which image
+    each keypoint is from."""
+    return None if query.image is None else MatchCache(query)

@@ -56,7 +56,7 @@ from pipemap.localizer.epipolar import (
     _tilted,
 )
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.keymatch import _matches, _merged, overlapping_images
+from pipemap.localizer.keymatch import MatchCache, _matches, _merged, overlapping_images
 from pipemap.localizer.similarity import wrap_angle_rad
 
 __all__ = [
@@ -380,6 +380,7 @@ def _staged_matches(
     guess_rad: float | None,
     config: TwoViewConfig,
     tolerance: float,
+    cache: MatchCache | None = None,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The matches of :func:`_matches`, found in ``config.gate_every`` stages of the
     known sweep's keypoints; ``None`` as soon as the matches so far fall short of a
@@ -387,12 +388,12 @@ def _staged_matches(
     stages = max(1, config.gate_every)
     gate = config.gate_share * config.min_inliers / stages
     if stages == 1 or int(gate) < 2:
-        return _matches(query, known, ratio, overlap)
+        return _matches(query, known, ratio, overlap, cache=cache)
     part = np.arange(len(known)) % stages
     found: list[tuple[np.ndarray, np.ndarray]] = []
     count = 0
     for stage in range(stages):
-        found.append(_matches(query, known, ratio, overlap, part == stage))
+        found.append(_matches(query, known, ratio, overlap, part == stage, cache))
         needed = int(gate * (stage + 1))
         # More matches never lower a count: a gate the last count passes is passed.
         if stage < stages - 1 and count < needed:
@@ -408,6 +409,7 @@ def fit_two_view(
     known: SweepFeatures,
     config: TwoViewConfig | None = None,
     guess_rad: float | None = None,
+    cache: MatchCache | None = None,
 ) -> TwoViewFit | None:
     """The rotation and motion between two sweeps, or ``None`` when too few matched
     keypoints fit one motion (not the same place, or too little texture).
@@ -416,6 +418,8 @@ def fit_two_view(
     and around ``guess_rad`` (the NCC's estimate, say), if given: near walls pull
     the peak by up to the parallax. With a guess (and ``config.overlap_only``), each
     image is matched only with the images of the other sweep that can overlap it.
+    ``cache`` (a :class:`MatchCache` of this pair) keeps the keypoint distances for
+    another fit of the same two sweeps: the same fit, fewer distances.
     """
     config = config if config is not None else TwoViewConfig()
     overlap = None
@@ -423,7 +427,7 @@ def fit_two_view(
         overlap = overlapping_images(query, known, guess_rad, config.overlap_margin_rad)
     ratio = config.ratio if overlap is None else config.overlap_ratio
     tolerance = config.inlier_px * max(query.pixel_rad, known.pixel_rad)
-    found = _staged_matches(query, known, ratio, overlap, guess_rad, config, tolerance)
+    found = _staged_matches(query, known, ratio, overlap, guess_rad, config, tolerance, cache)
     if found is None:
         return None
     ia, ib = found

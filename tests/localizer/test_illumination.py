@@ -101,9 +101,9 @@ def test_under_a_lamp_a_failed_fit_is_tried_again_at_any_rotation(
     real = localizer_module.fit_two_view
     guesses: list[float | None] = []
 
-    def guided_fails(query, known, config=None, guess_rad=None):  # type: ignore[no-untyped-def]
+    def guided_fails(query, known, config=None, guess_rad=None, cache=None):  # type: ignore[no-untyped-def]
         guesses.append(guess_rad)
-        return None if guess_rad is not None else real(query, known, config, None)
+        return None if guess_rad is not None else real(query, known, config, None, cache)
 
     monkeypatch.setattr(localizer_module, "fit_two_view", guided_fails)
     config = LocalizerConfig(

@@ -423,8 +423,8 @@ def test_the_expected_junction_needs_fewer_inliers(
 
     real = module.fit_two_view
 
-    def thirty(query, known_features, config, guess=None):  # type: ignore[no-untyped-def]
-        fit = real(query, known_features, replace(config, min_inliers=12), guess)
+    def thirty(query, known_features, config, guess=None, cache=None):  # type: ignore[no-untyped-def]
+        fit = real(query, known_features, replace(config, min_inliers=12), guess, cache)
         return None if fit is None else replace(fit, inliers=30)
 
     monkeypatch.setattr(module, "fit_two_view", thirty)

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.keymatch import _matches
 from pipemap.localizer.similarity import wrap_angle_rad
 from pipemap.localizer.twoview import (
     SweepFeatures,
     TwoViewConfig,
     _levelling,
-    _matches,
     fit_two_view,
     overlapping_images,
     stored_features,
