@@ -48,7 +48,6 @@ import cv2
 import numpy as np
 
 from pipemap.localizer.epipolar import (
-    _azimuth_peak,
     _gauss_newton,
     _grid_counts,
     _planar_residuals,
@@ -56,8 +55,9 @@ from pipemap.localizer.epipolar import (
     _tilted,
 )
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.keymatch import MatchCache, _matches, _merged, overlapping_images
+from pipemap.localizer.keymatch import MatchCache, overlapping_images
 from pipemap.localizer.similarity import wrap_angle_rad
+from pipemap.localizer.stages import _coarse_start, _staged_matches
 
 __all__ = [
     "StoredFeatures",
@@ -106,6 +106,12 @@ class TwoViewConfig:
     #: more inliers in the end). ``gate_every = 1``: one stage.
     gate_every: int = 4
     gate_share: float = 0.5
+    #: The coarse search on all matches (see :func:`fit_two_view`) is made only this
+    #: many rotation steps either side of the best rotation of the last gate's grid,
+    #: when that grid found at least twice what its gate asked: the peak a quarter
+    #: of the keypoints found so clearly is the peak of all of them, and the search
+    #: everywhere else cost a revisit 4-5 ms. 0: everywhere, always.
+    local_steps: int = 10
     #: Rotation searched within this angle of the peak of the matches' azimuth
     #: differences (parallax at 3 cm off centre reaches about 0.3 rad).
     search_rad: float = 0.3
@@ -351,59 +357,6 @@ def sweep_features(image_set: ImageSet, config: TwoViewConfig | None = None) -> 
     return stored_features(image_set, config).features()
 
 
-def _coarse(
-    query: SweepFeatures,
-    known: SweepFeatures,
-    found: tuple[np.ndarray, np.ndarray],
-    guess_rad: float | None,
-    config: TwoViewConfig,
-    tolerance: float,
-) -> tuple[np.ndarray, np.ndarray, list[float]]:
-    """The coarse search of :func:`fit_two_view` on the matches ``found``: the counts
-    of every rotation (around the azimuth peak and the guess) and direction, the
-    rotations, and the centres they lie around (the peak first)."""
-    a, b = query.bearings[found[0]], known.bearings[found[1]]
-    if len(a) == 0:
-        return np.zeros((0, config.direction_steps), np.int64), np.zeros(0), []
-    offsets = np.linspace(-config.search_rad, config.search_rad, config.rotation_steps)
-    centres = [_azimuth_peak(a, b)] + ([] if guess_rad is None else [guess_rad])
-    rotations = np.concatenate([centre + offsets for centre in centres])
-    counts = _grid_counts(a, b, rotations, config.direction_steps, tolerance)
-    return counts, rotations, centres
-
-
-def _staged_matches(
-    query: SweepFeatures,
-    known: SweepFeatures,
-    ratio: float,
-    overlap: list[np.ndarray] | None,
-    guess_rad: float | None,
-    config: TwoViewConfig,
-    tolerance: float,
-    cache: MatchCache | None = None,
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The matches of :func:`_matches`, found in ``config.gate_every`` stages of the
-    known sweep's keypoints; ``None`` as soon as the matches so far fall short of a
-    stage's gate (see :attr:`TwoViewConfig.gate_every`)."""
-    stages = max(1, config.gate_every)
-    gate = config.gate_share * config.min_inliers / stages
-    if stages == 1 or int(gate) < 2:
-        return _matches(query, known, ratio, overlap, cache=cache)
-    part = np.arange(len(known)) % stages
-    found: list[tuple[np.ndarray, np.ndarray]] = []
-    count = 0
-    for stage in range(stages):
-        found.append(_matches(query, known, ratio, overlap, part == stage, cache))
-        needed = int(gate * (stage + 1))
-        # More matches never lower a count: a gate the last count passes is passed.
-        if stage < stages - 1 and count < needed:
-            counts = _coarse(query, known, _merged(known, found), guess_rad, config, tolerance)[0]
-            count = int(counts.max(initial=0))
-            if count < needed:
-                return None
-    return _merged(known, found)
-
-
 def fit_two_view(
     query: SweepFeatures,
     known: SweepFeatures,
@@ -427,20 +380,16 @@ def fit_two_view(
         overlap = overlapping_images(query, known, guess_rad, config.overlap_margin_rad)
     ratio = config.ratio if overlap is None else config.overlap_ratio
     tolerance = config.inlier_px * max(query.pixel_rad, known.pixel_rad)
-    found = _staged_matches(query, known, ratio, overlap, guess_rad, config, tolerance, cache)
-    if found is None:
+    staged = _staged_matches(query, known, ratio, overlap, guess_rad, config, tolerance, cache)
+    if staged is None:
         return None
-    ia, ib = found
+    ia, ib = staged.found
     if len(ia) < config.min_inliers:
         return None
     a, b = query.bearings[ia], known.bearings[ib]
     needed = max(config.min_inliers, config.min_inlier_share * len(a))
-    counts, rotations, centres = _coarse(query, known, (ia, ib), guess_rad, config, tolerance)
+    rotation, direction, centres = _coarse_start(query, known, staged, guess_rad, config, tolerance)
     directions = np.linspace(0.0, math.pi, config.direction_steps, endpoint=False)
-    per_rotation = counts.max(axis=1)
-    r = int(np.argmax(per_rotation))  # the first best rotation, its first best direction
-    best = (int(per_rotation[r]), float(rotations[r]), float(directions[int(np.argmax(counts[r]))]))
-    _, rotation, direction = best
     # Fine: Gauss-Newton on the inliers, which are chosen again each round.
     refined = _gauss_newton(
         _planar_residuals,

@@ -5,6 +5,7 @@ one-stage fit wherever it goes on, and stops early where it does not."""
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import replace
 from typing import Any
 
@@ -12,7 +13,8 @@ import cv2
 import numpy as np
 import pytest
 
-from pipemap.localizer import keymatch, twoview
+from pipemap.localizer import keymatch, stages, twoview
+from pipemap.localizer.epipolar import _turned
 from pipemap.localizer.fastmatch import FastMatcher
 from pipemap.localizer.keymatch import _ratio_matches, _words
 from pipemap.localizer.twoview import TwoViewConfig, fit_two_view, sweep_features
@@ -77,7 +79,7 @@ def _paper_features(paper_sets: dict[str, PaperSet], name: str) -> twoview.Sweep
 
 @pytest.fixture(scope="module")
 def features(paper_sets: dict[str, PaperSet]) -> dict[str, twoview.SweepFeatures]:
-    names = ["1", "1_noise", "2_active", "3_noise", "4", "10"]
+    names = ["1", "1_noise", "2_noise", "2_active", "3", "3_noise", "4", "10"]
     return {n: _paper_features(paper_sets, n) for n in names}
 
 
@@ -161,7 +163,7 @@ def test_each_stage_asks_for_its_share(
     def coarse(*args: object) -> tuple[np.ndarray, np.ndarray, list[float]]:
         return np.array([[next(given)]]), np.zeros(1), [0.0]
 
-    monkeypatch.setattr(twoview, "_coarse", coarse)
+    monkeypatch.setattr(stages, "_coarse", coarse)
     known = features["4"]
     assert fit_two_view(features["1"], known, TwoViewConfig(min_inliers=48)) is None
     assert sum(seen) == sum(len(range(s, len(known), 4)) for s in range(stages_run))
@@ -173,14 +175,97 @@ def test_a_count_past_every_gate_is_not_counted_again(
     """A count never falls as matches are added: when the first quarter already
     passes the last gate (18 of 48), the later gates cost no grid, only the fit."""
     calls: list[int] = []
-    real = twoview._coarse
+    real = stages._coarse
 
     def counting(*args: Any) -> tuple[np.ndarray, np.ndarray, list[float]]:
         calls.append(len(args[2][0]))
         return real(*args)
 
-    monkeypatch.setattr(twoview, "_coarse", counting)
+    monkeypatch.setattr(stages, "_coarse", counting)
     fit = fit_two_view(features["1"], features["1_noise"], TwoViewConfig(min_inliers=48))
     assert fit is not None
-    assert len(calls) == 2  # the first quarter's gate, then the fit on every match
-    assert calls[0] < calls[1] == fit.matches
+    assert len(calls) == 1  # the first quarter's gate; then the search for the fit
+    assert calls[0] < fit.matches
+
+
+@pytest.fixture
+def searched(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """How many rotations each coarse grid counted (the gate's, then the search's)."""
+    counts: list[int] = []
+    real = stages._grid_counts
+
+    def counting(a: np.ndarray, b: np.ndarray, rotations: np.ndarray, *args: Any) -> np.ndarray:
+        counts.append(len(rotations))
+        return real(a, b, rotations, *args)
+
+    monkeypatch.setattr(stages, "_grid_counts", counting)
+    return counts
+
+
+@pytest.mark.parametrize("with_guess", [True, False])
+def test_a_clear_peak_of_the_gate_is_searched_around_only(
+    paper_sets: dict[str, PaperSet],
+    features: dict[str, twoview.SweepFeatures],
+    searched: list[int],
+    with_guess: bool,
+) -> None:
+    """Same junction from the same entry: the gate's quarter alone fits with the 48
+    inliers asked (86 to 163), so the search on every match counts only the
+    rotations within ten steps of its peak, and finds the start (and so the fit) of
+    the search everywhere."""
+    local = TwoViewConfig(min_inliers=48)
+    everywhere = replace(local, local_steps=0)
+    for q, k in [("1", "1_noise"), ("2_noise", "2_active"), ("3_noise", "3")]:
+        guess = _guess(paper_sets, q, k) if with_guess else None
+        searched.clear()
+        near = fit_two_view(features[q], features[k], local, guess)
+        whole = local.rotation_steps * (2 if with_guess else 1)
+        assert searched[0] == whole  # the gate's
+        assert len(searched) == 2 and 0 < searched[1] <= 2 * (2 * local.local_steps + 1)
+        searched.clear()
+        assert fit_two_view(features[q], features[k], everywhere, guess) == near
+        assert searched == [whole, whole]
+        assert near is not None and near.inliers >= 48
+
+
+@pytest.mark.parametrize(("most", "rotations"), [(47, 121), (48, 21)])
+def test_a_peak_short_of_the_fit_is_searched_everywhere(
+    monkeypatch: pytest.MonkeyPatch,
+    features: dict[str, twoview.SweepFeatures],
+    searched: list[int],
+    most: int,
+    rotations: int,
+) -> None:
+    """A gate count below what the whole fit needs may be a peak of chance: the
+    search on every match then counts every rotation."""
+    real = stages._coarse
+
+    def capped(*args: Any) -> tuple[np.ndarray, np.ndarray, list[float]]:
+        counts, rots, centres = real(*args)
+        return np.minimum(counts, most), rots, centres
+
+    monkeypatch.setattr(stages, "_coarse", capped)
+    fit_two_view(features["1"], features["1_noise"], TwoViewConfig(min_inliers=48))
+    assert searched[-1] == rotations
+
+
+def test_the_search_around_the_peak_wraps_at_half_a_turn(
+    features: dict[str, twoview.SweepFeatures],
+) -> None:
+    """Turned so that the rotation lies near half a turn, the azimuth peak and the
+    guess may fall either side of pi: a rotation and the same one a turn apart are
+    both near the gate's peak, and the fit is still the search everywhere's."""
+    query, known = features["1"], features["1_noise"]
+    local = TwoViewConfig(min_inliers=48)
+    base = fit_two_view(query, known, local)
+    assert base is not None
+    for offset in np.linspace(-0.3, 0.3, 13):
+        turn = math.pi - base.rotation_rad + offset
+        turned = replace(
+            query,
+            bearings=_turned(query.bearings, turn),
+            image_azimuth_rad=query.image_azimuth_rad + turn,
+        )
+        for guess in (math.pi + offset - 0.2, math.pi + offset, math.pi + offset + 0.2):
+            near = fit_two_view(turned, known, local, guess)
+            assert near == fit_two_view(turned, known, replace(local, local_steps=0), guess)

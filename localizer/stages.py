@@ -1,0 +1,148 @@
+"""The two-view check's matching in stages, and its coarse search for a start.
+
+:func:`_staged_matches` matches the known sweep's keypoints a share at a time
+(:attr:`TwoViewConfig.gate_every`) and gives a pair of sweeps up as soon as the
+matches so far cannot fit one motion well enough (the gate, counted on the coarse
+grid of :func:`localizer.epipolar._grid_counts`). :func:`_coarse_start` is the
+coarse search that starts the fit's refinement: on every rotation around the
+matches' azimuth peak and the guess, or, when the last gate's grid already found
+a clear peak, only around it. Why: :mod:`localizer.twoview`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pipemap.localizer.epipolar import _azimuth_peak, _grid_counts
+from pipemap.localizer.keymatch import MatchCache, _matches, _merged
+
+if TYPE_CHECKING:
+    from pipemap.localizer.twoview import SweepFeatures, TwoViewConfig
+
+
+@dataclass(frozen=True)
+class _Staged:
+    """The matches of every stage (:func:`_merged`'s order) and the coarse grid of
+    the last gate counted: its counts, rotations and what that gate asked (``None``
+    without a gate)."""
+
+    found: tuple[np.ndarray, np.ndarray]
+    gate_counts: np.ndarray | None = None
+    gate_rotations: np.ndarray | None = None
+    gate_needed: int = 0
+
+
+def _rotations(centres: list[float], config: TwoViewConfig) -> np.ndarray:
+    offsets = np.linspace(-config.search_rad, config.search_rad, config.rotation_steps)
+    return np.concatenate([centre + offsets for centre in centres])
+
+
+def _centres(
+    query: SweepFeatures,
+    known: SweepFeatures,
+    found: tuple[np.ndarray, np.ndarray],
+    guess: float | None,
+) -> list[float]:
+    """The azimuth peak of the matches ``found`` (first), and the guess if any."""
+    a, b = query.bearings[found[0]], known.bearings[found[1]]
+    return [_azimuth_peak(a, b)] + ([] if guess is None else [guess])
+
+
+def _coarse(
+    query: SweepFeatures,
+    known: SweepFeatures,
+    found: tuple[np.ndarray, np.ndarray],
+    guess_rad: float | None,
+    config: TwoViewConfig,
+    tolerance: float,
+) -> tuple[np.ndarray, np.ndarray, list[float]]:
+    """The coarse search of :func:`fit_two_view` on the matches ``found``: the counts
+    of every rotation (around the azimuth peak and the guess) and direction, the
+    rotations, and the centres they lie around (the peak first)."""
+    a, b = query.bearings[found[0]], known.bearings[found[1]]
+    if len(a) == 0:
+        return np.zeros((0, config.direction_steps), np.int64), np.zeros(0), []
+    centres = _centres(query, known, found, guess_rad)
+    rotations = _rotations(centres, config)
+    counts = _grid_counts(a, b, rotations, config.direction_steps, tolerance)
+    return counts, rotations, centres
+
+
+def _staged_matches(
+    query: SweepFeatures,
+    known: SweepFeatures,
+    ratio: float,
+    overlap: list[np.ndarray] | None,
+    guess_rad: float | None,
+    config: TwoViewConfig,
+    tolerance: float,
+    cache: MatchCache | None = None,
+) -> _Staged | None:
+    """The matches of :func:`_matches`, found in ``config.gate_every`` stages of the
+    known sweep's keypoints; ``None`` as soon as the matches so far fall short of a
+    stage's gate (see :attr:`TwoViewConfig.gate_every`)."""
+    stages = max(1, config.gate_every)
+    gate = config.gate_share * config.min_inliers / stages
+    if stages == 1 or int(gate) < 2:
+        return _Staged(_matches(query, known, ratio, overlap, cache=cache))
+    part = np.arange(len(known)) % stages
+    found: list[tuple[np.ndarray, np.ndarray]] = []
+    count = 0
+    grid: tuple[np.ndarray, np.ndarray, int] | None = None
+    for stage in range(stages):
+        found.append(_matches(query, known, ratio, overlap, part == stage, cache))
+        needed = int(gate * (stage + 1))
+        # More matches never lower a count: a gate the last count passes is passed.
+        if stage < stages - 1 and count < needed:
+            counts, rotations, _ = _coarse(
+                query, known, _merged(known, found), guess_rad, config, tolerance
+            )
+            count = int(counts.max(initial=0))
+            if count < needed:
+                return None
+            grid = (counts, rotations, needed)
+    if grid is None:
+        return _Staged(_merged(known, found))
+    return _Staged(_merged(known, found), *grid)
+
+
+def _coarse_start(
+    query: SweepFeatures,
+    known: SweepFeatures,
+    staged: _Staged,
+    guess_rad: float | None,
+    config: TwoViewConfig,
+    tolerance: float,
+) -> tuple[float, float, list[float]]:
+    """Where the fit's refinement starts: the first best rotation of the coarse grid
+    on all the matches, its first best direction of motion; and the centres of the
+    grid's rotations (the azimuth peak first).
+
+    When the last gate's grid found at least twice what that gate asked, only the
+    rotations within ``config.local_steps`` steps of its best are counted (on the
+    same rotations as the whole grid, in the same order)."""
+    found = staged.found
+    a, b = query.bearings[found[0]], known.bearings[found[1]]
+    centres = _centres(query, known, found, guess_rad)
+    rotations = _rotations(centres, config)
+    gate = staged.gate_counts
+    if gate is not None and staged.gate_rotations is not None and config.local_steps > 0:
+        per_rotation = gate.max(axis=1)
+        best = int(np.argmax(per_rotation))
+        if per_rotation[best] >= config.min_inliers:
+            step = 2.0 * config.search_rad / max(1, config.rotation_steps - 1)
+            reach = (config.local_steps + 0.5) * step
+            # Rotations a turn apart are one (the two centres may lie either side of pi).
+            gap = np.mod(rotations - staged.gate_rotations[best] + math.pi, 2.0 * math.pi)
+            near = np.abs(gap - math.pi) <= reach
+            if near.any():
+                rotations = rotations[near]
+    counts = _grid_counts(a, b, rotations, config.direction_steps, tolerance)
+    directions = np.linspace(0.0, math.pi, config.direction_steps, endpoint=False)
+    per_rotation = counts.max(axis=1)
+    r = int(np.argmax(per_rotation))  # the first best rotation, its first best direction
+    return float(rotations[r]), float(directions[int(np.argmax(counts[r]))]), centres
