@@ -43,7 +43,13 @@ from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
 from pipemap.localizer.illumination import IlluminationConfig, normalised
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.keymatch import MatchCache
-from pipemap.localizer.ports import PORT_TOLERANCE_RAD, PortMatch, clockwise_ports, match_ports
+from pipemap.localizer.ports import (
+    PORT_TOLERANCE_RAD,
+    PortMatch,
+    clockwise_ports,
+    match_ports,
+    port_rotations,
+)
 from pipemap.localizer.ports import nearest_exit as _nearest_exit
 from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.similarity import SetMatch
@@ -56,6 +62,7 @@ from pipemap.localizer.twoview import (
     fit_two_view,
     stored_features,
 )
+from pipemap.localizer.verify import candidate_fit
 
 __all__ = [
     "DEFAULT_THRESHOLD",
@@ -397,6 +404,24 @@ class Localizer:
         few dozen pixels), the threshold decides, as in the paper."""
         return len(features) >= self.config.verify_min_keypoints
 
+    def _allowed_rotations(
+        self, node: int, exits: tuple[float, ...] | None, turn: float
+    ) -> tuple[float, ...] | None:
+        """The rotations (from the matched sweep's heading, ``turn`` after the visit's)
+        at which the exits line up with ``node``'s ports; ``None`` when there is
+        nothing to compare (no port check, no exits, no ports)."""
+        ports = self.map.ports(node)
+        if not self.config.port_check or exits is None or ports is None:
+            return None
+        allowed = port_rotations(ports, exits, self.config.port_tolerance_rad)
+        return tuple(math.remainder(r - turn, 2.0 * math.pi) for r in allowed)
+
+    def _agrees(self, node: int, exits: tuple[float, ...] | None, rotation_rad: float) -> bool:
+        """Whether a fit at ``rotation_rad`` (from the visit's heading) passes the port
+        check (it does when there is nothing to check)."""
+        ports = self._ports_of(node, exits, rotation_rad)
+        return ports is None or ports.agrees or not self.config.port_check
+
     def _verified(
         self,
         features: SweepFeatures,
@@ -427,16 +452,19 @@ class Localizer:
             # soon as it knows (so only the junction that fits pays for the tilted
             # refinement).
             needed = self.config.expected_inliers if i == expected else self.config.verify_inliers
-            config = replace(
+            fit = candidate_fit(
+                features,
+                self._features[i].features(),
+                matches[i].rotation_rad,
+                needed,
                 self.config.two_view_config,
-                min_inliers=max(self.config.two_view_config.min_inliers, needed),
+                self._allowed_rotations(i, exits, turn),
+                lambda fit, i=i: self._agrees(i, exits, fit.turned(turn).rotation_rad),
+                bool(self.config.lamp),
+                self.config.port_tolerance_rad,
+                # The fits of one candidate share their keypoint distances.
+                _match_cache(features),
             )
-            known = self._features[i].features()
-            # The lamp's second fit (at any rotation) reuses the first's distances.
-            cache = _match_cache(features) if self.config.lamp else None
-            fit = fit_two_view(features, known, config, matches[i].rotation_rad, cache=cache)
-            if self.config.lamp and (fit is None or fit.inliers < needed):
-                fit = fit_two_view(features, known, config, None, cache=cache)
             if fit is not None and fit.inliers >= needed:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
                 if ports is not None and not ports.agrees and self.config.port_check:

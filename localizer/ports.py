@@ -26,6 +26,7 @@ __all__ = [
     "clockwise_ports",
     "match_ports",
     "nearest_exit",
+    "port_rotations",
 ]
 
 #: A revisit's exit and the port it maps to may differ by this much. Measured at
@@ -118,6 +119,29 @@ def match_ports(
     for k in range(n):
         port_of[order[(k + best_shift) % n]] = k
     return PortMatch(tuple(port_of), best_error)
+
+
+def port_rotations(
+    ports_rad: Sequence[float],
+    exits_rad: Sequence[float],
+    tolerance_rad: float = PORT_TOLERANCE_RAD,
+) -> tuple[float, ...]:
+    """Every rotation (as :func:`match_ports` takes it) at which ``exits_rad`` line up
+    with ``ports_rad``: one for each cyclic assignment whose exits ask for rotations
+    within twice the tolerance of one another, the middle of what they ask. None
+    when the counts differ; several when the junction looks the same turned (a
+    cross: four), which only the images can tell apart."""
+    n = len(ports_rad)
+    if len(exits_rad) != n or n == 0:
+        return ()
+    order = sorted(range(n), key=lambda i: (_clockwise_key(exits_rad[i]), i))
+    found = []
+    for shift in range(n):
+        asked = [_wrap(exits_rad[order[(k + shift) % n]] - ports_rad[k]) for k in range(n)]
+        spread = [_wrap(r - asked[0]) for r in asked]
+        if max(spread) - min(spread) <= 2.0 * tolerance_rad:
+            found.append(_wrap(asked[0] + (max(spread) + min(spread)) / 2.0))
+    return tuple(found)
 
 
 def nearest_exit(

@@ -46,8 +46,12 @@ def _centres(
     known: SweepFeatures,
     found: tuple[np.ndarray, np.ndarray],
     guess: float | None,
+    config: TwoViewConfig,
 ) -> list[float]:
-    """The azimuth peak of the matches ``found`` (first), and the guess if any."""
+    """The azimuth peak of the matches ``found`` (first), and the guess if any; the
+    guess alone when ``config.around_peak`` is off (and there is one)."""
+    if guess is not None and not config.around_peak:
+        return [guess]
     a, b = query.bearings[found[0]], known.bearings[found[1]]
     return [_azimuth_peak(a, b)] + ([] if guess is None else [guess])
 
@@ -66,7 +70,7 @@ def _coarse(
     a, b = query.bearings[found[0]], known.bearings[found[1]]
     if len(a) == 0:
         return np.zeros((0, config.direction_steps), np.int64), np.zeros(0), []
-    centres = _centres(query, known, found, guess_rad)
+    centres = _centres(query, known, found, guess_rad, config)
     rotations = _rotations(centres, config)
     counts = _grid_counts(a, b, rotations, config.direction_steps, tolerance)
     return counts, rotations, centres
@@ -127,7 +131,7 @@ def _coarse_start(
     same rotations as the whole grid, in the same order)."""
     found = staged.found
     a, b = query.bearings[found[0]], known.bearings[found[1]]
-    centres = _centres(query, known, found, guess_rad)
+    centres = _centres(query, known, found, guess_rad, config)
     rotations = _rotations(centres, config)
     gate = staged.gate_counts
     if gate is not None and staged.gate_rotations is not None and config.local_steps > 0:

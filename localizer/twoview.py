@@ -115,6 +115,9 @@ class TwoViewConfig:
     #: Rotation searched within this angle of the peak of the matches' azimuth
     #: differences (parallax at 3 cm off centre reaches about 0.3 rad).
     search_rad: float = 0.3
+    #: Search around the matches' azimuth peak as well as the guess (off: a fit that
+    #: tests one rotation, see :mod:`localizer.verify`).
+    around_peak: bool = True
     #: Grid steps of the search: rotation, and direction of motion over [0, pi).
     rotation_steps: int = 121
     direction_steps: int = 90

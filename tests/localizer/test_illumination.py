@@ -16,7 +16,7 @@ from pipemap.localizer import (
     normalised,
     reference_match,
 )
-from pipemap.localizer import localizer as localizer_module
+from pipemap.localizer import verify as verify_module
 from tests.localizer.synthetic import ROWS, WIDTH, panorama, sweep
 
 
@@ -98,14 +98,14 @@ def test_under_a_lamp_a_failed_fit_is_tried_again_at_any_rotation(
 ) -> None:
     """Under a lamp the NCC may turn a cross junction by a quarter: the fit at its
     rotation fails, and only a fit free of that guess finds the junction."""
-    real = localizer_module.fit_two_view
+    real = verify_module.fit_two_view
     guesses: list[float | None] = []
 
     def guided_fails(query, known, config=None, guess_rad=None, cache=None):  # type: ignore[no-untyped-def]
         guesses.append(guess_rad)
         return None if guess_rad is not None else real(query, known, config, None, cache)
 
-    monkeypatch.setattr(localizer_module, "fit_two_view", guided_fails)
+    monkeypatch.setattr(verify_module, "fit_two_view", guided_fails)
     config = LocalizerConfig(
         active_vision=False, distinct_consecutive=False, verify_min_keypoints=10, lamp=lamp
     )

@@ -419,7 +419,7 @@ def test_the_expected_junction_needs_fewer_inliers(
 ) -> None:
     """Every fit is cut to 30 inliers: below ``verify_inliers`` (48), so only the
     junction the map expects can be recognised, and only under its own bar."""
-    from pipemap.localizer import localizer as module
+    from pipemap.localizer import verify as module
 
     real = module.fit_two_view
 

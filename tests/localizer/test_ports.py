@@ -11,6 +11,7 @@ from pipemap.localizer.ports import (
     clockwise_ports,
     match_ports,
     nearest_exit,
+    port_rotations,
 )
 
 PI = math.pi
@@ -92,3 +93,37 @@ def test_nearest_exit_within_the_tolerance() -> None:
     assert nearest_exit(exits, 1.6) == 1
     assert nearest_exit(exits, 0.0) is None
     assert nearest_exit((), 0.0) is None
+
+
+@pytest.mark.parametrize(
+    ("exits", "turns"),
+    [
+        ((PI, PI / 2, 0.0, -PI / 2), 4),  # a cross looks the same four ways
+        ((PI, 0.0), 2),  # a straight pipe two ways
+        ((PI, PI / 2, -PI / 2), 1),  # a T one way
+        ((PI,), 1),  # a dead end one way
+    ],
+)
+def test_the_rotations_the_ports_allow(exits: tuple[float, ...], turns: int) -> None:
+    """Each rotation the exits allow lines them up with the ports (as the port check
+    asks); half a tolerance beside it they still do, and past the tolerance not."""
+    ports, _ = clockwise_ports(exits)
+    scanned = tuple(math.remainder(e + 0.7 + 0.05 * k, 2 * PI) for k, e in enumerate(exits))
+    allowed = port_rotations(ports, scanned)
+    assert len(allowed) == turns
+    for rotation in allowed:
+        assert match_ports(ports, scanned, rotation).agrees
+        assert match_ports(ports, scanned, rotation + PORT_TOLERANCE_RAD / 2).agrees
+        assert not match_ports(ports, scanned, rotation + 2.5 * PORT_TOLERANCE_RAD).agrees
+    # Every rotation that agrees is near one of them.
+    for step in range(360):
+        rotation = math.radians(step)
+        if match_ports(ports, scanned, rotation).agrees:
+            assert min(abs(math.remainder(rotation - r, 2 * PI)) for r in allowed) <= 0.5
+
+
+def test_no_rotation_lines_up_other_counts_or_shapes() -> None:
+    tee, _ = clockwise_ports((PI, PI / 2, -PI / 2))
+    assert port_rotations(tee, (PI, 0.0)) == ()  # a corner's two exits
+    assert port_rotations(tee, (PI, 2.4, -2.4)) == ()  # a Y, not a T
+    assert port_rotations((), ()) == ()
