@@ -42,7 +42,6 @@ from pipemap.localizer.decision import (
 from pipemap.localizer.fastmatch import FastConfig, FastMatcher, PreparedSet
 from pipemap.localizer.illumination import IlluminationConfig, normalised
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.keymatch import MatchCache
 from pipemap.localizer.ports import (
     PORT_TOLERANCE_RAD,
     PortMatch,
@@ -462,8 +461,6 @@ class Localizer:
                 lambda fit, i=i: self._agrees(i, exits, fit.turned(turn).rotation_rad),
                 bool(self.config.lamp),
                 self.config.port_tolerance_rad,
-                # The fits of one candidate share their keypoint distances.
-                _match_cache(features),
             )
             if fit is not None and fit.inliers >= needed:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
@@ -472,9 +469,3 @@ class Localizer:
                     continue
                 return i, fit, ports
         return None
-
-
-def _match_cache(query: SweepFeatures) -> MatchCache | None:
-    """A cache of a pair of sweeps' keypoint distances, if the query says which image
-    each keypoint is from."""
-    return None if query.image is None else MatchCache(query)

@@ -83,6 +83,13 @@ class TwoViewConfig:
     #: :func:`stored_features`).
     detect_width_px: int = 200
     reduced_keypoints_per_image: int = 250
+    #: The least brightness step around a FAST corner, in grey levels: low for images
+    #: ORB sees at their own size (a 96-200 px sweep of a plain pipe has few
+    #: corners to spare), higher for reduced ones, where it keeps the clearer half of
+    #: the corners (about 600 a sweep at 400 px instead of 1200) for half the ORB
+    #: time and a quarter of the matching; see docs/performance.md.
+    fast_threshold: int = 5
+    reduced_fast_threshold: int = 20
     #: Lowe's ratio: a match counts if its distance is below this share of the
     #: second-best one.
     ratio: float = 0.8
@@ -209,14 +216,14 @@ def _gray_u8(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.rint((image - lo) * scale), dtype=np.uint8)
 
 
-def _orb(config: TwoViewConfig, width_px: int) -> cv2.ORB:
+def _orb(keypoints: int, width_px: int, fast_threshold: int) -> cv2.ORB:
     # ORB skips a border as wide as its patch; small images need a smaller patch.
     patch = int(min(31, max(7, width_px // 12)))
     return cv2.ORB.create(
-        nfeatures=config.keypoints_per_image,
+        nfeatures=keypoints,
         edgeThreshold=patch,
         patchSize=patch,
-        fastThreshold=5,
+        fastThreshold=fast_threshold,
     )
 
 
@@ -315,11 +322,11 @@ def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) ->
     if factor > 1:
         size = (max(w // factor, 8), max(kept.shape[1] // factor, 8))
         seen = [cv2.resize(np.asarray(im), size, interpolation=cv2.INTER_AREA) for im in kept]
-        per_image = config.reduced_keypoints_per_image
+        per_image, threshold = config.reduced_keypoints_per_image, config.reduced_fast_threshold
     else:
         seen = list(kept)
-        per_image = config.keypoints_per_image
-    orb = _orb(replace(config, keypoints_per_image=per_image), w // factor)
+        per_image, threshold = config.keypoints_per_image, config.fast_threshold
+    orb = _orb(per_image, w // factor, threshold)
     points: list[np.ndarray] = []
     images: list[np.ndarray] = []
     descriptors: list[np.ndarray] = []

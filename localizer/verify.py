@@ -36,6 +36,15 @@ def _apart(a_rad: float, b_rad: float) -> float:
     return abs(math.remainder(a_rad - b_rad, 2.0 * math.pi))
 
 
+def _refits(
+    guess_rad: float, rotations: tuple[float, ...] | None, any_rotation: bool, config: TwoViewConfig
+) -> bool:
+    """Whether a second fit of the pair may follow the guided one."""
+    if rotations is None:
+        return any_rotation
+    return any(_apart(guess_rad, r) > config.search_rad / 2.0 for r in rotations)
+
+
 def candidate_fit(
     query: SweepFeatures,
     known: SweepFeatures,
@@ -60,6 +69,13 @@ def candidate_fit(
     guess when the guided fit fails. ``cache`` shares the keypoint distances among
     the fits.
     """
+
+    if (
+        cache is None
+        and query.image is not None
+        and _refits(guess_rad, rotations, any_rotation, config)
+    ):
+        cache = MatchCache(query)
 
     def fit_at(guess: float | None, bar: int, around_peak: bool = True) -> TwoViewFit | None:
         asked = replace(config, min_inliers=max(config.min_inliers, bar), around_peak=around_peak)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from pipemap.localizer import Decision, Localizer, LocalizerConfig, keymatch
-from pipemap.localizer import localizer as localizer_module
+from pipemap.localizer import verify as verify_module
 from pipemap.localizer.keymatch import MatchCache, _matches, overlapping_images
 from pipemap.localizer.twoview import SweepFeatures, TwoViewConfig, fit_two_view, sweep_features
 from tests.conftest import PaperSet
@@ -134,7 +134,7 @@ def test_under_a_lamp_the_localizer_retries_through_the_cache(
         return loc.localize(paper_sets["1"].images), sum(pairs_compared)
 
     cached, fewer = decide()
-    monkeypatch.setattr(localizer_module, "_match_cache", lambda query: None)
+    monkeypatch.setattr(verify_module, "MatchCache", lambda query: None)
     fresh, more = decide()
     assert not cached.known and cached == fresh
     assert fewer < more

@@ -201,6 +201,24 @@ def test_the_keypoints_an_image_keeps_depend_on_the_width_orb_sees(size: int) ->
         assert kept[150].max() <= config.reduced_keypoints_per_image
 
 
+@pytest.mark.parametrize("size", [200, 400])
+def test_the_fast_threshold_depends_on_the_width_orb_sees(size: int) -> None:
+    """ORB's FAST threshold is ``fast_threshold`` for an image seen at its own size
+    and ``reduced_fast_threshold`` for a reduced one; each is ignored on the other
+    path. A higher threshold keeps fewer, clearer corners."""
+    images = np.stack([_textured(j, size) for j in range(6)])
+    image_set = ImageSet(images, fov_rad=math.radians(80.0), keep_top_fraction=0.5)
+    config = TwoViewConfig()
+    own, reduced = ("fast_threshold", "reduced_fast_threshold")[:: 1 if size <= 200 else -1]
+    count = {
+        (name, value): len(stored_features(image_set, replace(config, **{name: value})))
+        for name in (own, reduced)
+        for value in (5, 40)
+    }
+    assert count[(own, 40)] < count[(own, 5)]
+    assert count[(reduced, 40)] == count[(reduced, 5)]
+
+
 def test_camera_angle_turns_every_bearing() -> None:
     images = np.stack([_textured(10 + j) for j in range(6)])
     a = sweep_features(ImageSet(images, camera_angle_rad=0.0))
