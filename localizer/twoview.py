@@ -83,13 +83,14 @@ class TwoViewConfig:
     #: :func:`stored_features`).
     detect_width_px: int = 200
     reduced_keypoints_per_image: int = 250
-    #: The least brightness step around a FAST corner, in grey levels: low for images
-    #: ORB sees at their own size (a 96-200 px sweep of a plain pipe has few
-    #: corners to spare), higher for reduced ones, where it keeps the clearer half of
-    #: the corners (about 600 a sweep at 400 px instead of 1200) for half the ORB
-    #: time and a quarter of the matching; see docs/performance.md.
+    #: The least brightness step around a FAST corner, in grey levels, for images
+    #: ORB sees at their own size and for reduced ones. A higher threshold keeps fewer,
+    #: clearer corners and costs less (at 400 px, 20 halves ORB's time and quarters
+    #: the matching), but weak revisits lose inliers: over the 40 logs of
+    #: ``experiments/maps.toml`` (578 decisions), 10 kept every decision, 12 and 15
+    #: lost one, 20 three. See docs/performance.md.
     fast_threshold: int = 5
-    reduced_fast_threshold: int = 20
+    reduced_fast_threshold: int = 5
     #: Lowe's ratio: a match counts if its distance is below this share of the
     #: second-best one.
     ratio: float = 0.8
