@@ -165,6 +165,8 @@ def decision_benchmark(
         cpu_ms[str(size)] = round(statistics.median(cpus) * 1000, 2)
         held = localizer._matcher.kept_bytes() + sum(f.nbytes for f in localizer._features)
         memory = held / localizer.known_count / 1024
+        # Beside what each junction keeps: the refinement cache's few sets, a fixed sum.
+        cache = localizer._matcher.cache_bytes() / 1024
         if check:
             config = localizer.config.two_view_config
             for query in queries:
@@ -177,6 +179,7 @@ def decision_benchmark(
         "decision_ms": decision_ms,
         "decision_cpu_ms": cpu_ms,
         "memory_per_junction_kib": round(memory, 1),
+        "refine_cache_kib": round(cache, 1),
         "two_view": True,
         "queries": len(queries),
         "repeat": repeat,

@@ -117,6 +117,17 @@ class FastMatcher:
             total += sum(z.spectrum.nbytes + z.inv_window_norm.nbytes for z in known.zoomed)
         return total
 
+    def cache_bytes(self) -> int:
+        """Memory the refinement cache holds beyond :meth:`kept_bytes`: the spectra of
+        the last few refined known sets (at most ``_FINE_CACHE`` of them, whatever the
+        size of the database)."""
+        total = 0
+        for i, cached in self._fine_cache.items():
+            fine = cached.fine
+            if fine is not None and self._sets[i].fine is None:  # rebuilt, not kept
+                total += fine.spectrum.nbytes + fine.inv_window_norm.nbytes + fine.inv_norm.nbytes
+        return total
+
     def _refinable(self, i: int) -> PreparedSet:
         """Known set ``i`` with its refinement spectra, from a small cache (they cost
         ten times the compact images to keep, and a few ms to rebuild)."""

@@ -196,3 +196,23 @@ def test_turned_match_keeps_everything_but_the_rotations() -> None:
     assert turned.rotation_rad == pytest.approx(wrap_angle_rad(match.rotation_rad + 3.0))
     assert -math.pi < turned.rotation_pinhole_rad <= math.pi
     assert match.turned(0.0) is match
+
+
+def test_the_refinement_cache_holds_a_few_sets_whatever_the_database() -> None:
+    """The spectra rebuilt for refinement are kept for the last few refined sets only:
+    what they hold is counted (:meth:`FastMatcher.cache_bytes`), apart from what every
+    known set keeps, and it stops growing at ``_FINE_CACHE`` sets."""
+    from pipemap.localizer.fastmatch import _FINE_CACHE
+
+    matcher = FastMatcher()
+    for seed in range(_FINE_CACHE + 4):
+        matcher.add(matcher.prepare(sweep(panorama(seed))))
+    assert matcher.cache_bytes() == 0  # nothing refined yet
+    one = None
+    for seed in range(_FINE_CACHE + 4):
+        matcher.match(matcher.prepare(sweep(panorama(seed), turn=seed)))
+        if one is None:
+            one = matcher.cache_bytes() / len(matcher._fine_cache)
+    assert one is not None and one > 0
+    assert len(matcher._fine_cache) == _FINE_CACHE
+    assert matcher.cache_bytes() == pytest.approx(_FINE_CACHE * one)
