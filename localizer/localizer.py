@@ -58,7 +58,6 @@ from pipemap.localizer.twoview import (
     SweepFeatures,
     TwoViewConfig,
     TwoViewFit,
-    fit_two_view,
     stored_features,
 )
 from pipemap.localizer.verify import candidate_fit
@@ -282,9 +281,7 @@ class Localizer:
                 assert i_match is not None
                 i_fit = None
                 if features is not None:
-                    guess = matched_all[i].rotation_rad
-                    config = self.config.two_view_config
-                    raw = fit_two_view(features, self._features[i].features(), config, guess)
+                    raw = self._fit(i, features, matched_all[i].rotation_rad, 0, exits, turn)
                     i_fit = None if raw is None else raw.turned(turn)
                 rotation = i_fit.rotation_rad if i_fit is not None else i_match.rotation_rad
                 i_ports = self._ports_of(i, exits, rotation)
@@ -403,6 +400,30 @@ class Localizer:
         few dozen pixels), the threshold decides, as in the paper."""
         return len(features) >= self.config.verify_min_keypoints
 
+    def _fit(
+        self,
+        node: int,
+        features: SweepFeatures,
+        guess_rad: float,
+        needed: int,
+        exits: tuple[float, ...] | None,
+        turn: float,
+    ) -> TwoViewFit | None:
+        """The two-view fit of the sweep with known junction ``node`` (unturned), with at
+        least ``needed`` inliers, at the NCC's rotation or another the ports allow
+        (:func:`localizer.verify.candidate_fit`)."""
+        return candidate_fit(
+            features,
+            self._features[node].features(),
+            guess_rad,
+            needed,
+            self.config.two_view_config,
+            self._allowed_rotations(node, exits, turn),
+            lambda fit: self._agrees(node, exits, fit.turned(turn).rotation_rad),
+            bool(self.config.lamp),
+            self.config.port_tolerance_rad,
+        )
+
     def _allowed_rotations(
         self, node: int, exits: tuple[float, ...] | None, turn: float
     ) -> tuple[float, ...] | None:
@@ -451,17 +472,7 @@ class Localizer:
             # soon as it knows (so only the junction that fits pays for the tilted
             # refinement).
             needed = self.config.expected_inliers if i == expected else self.config.verify_inliers
-            fit = candidate_fit(
-                features,
-                self._features[i].features(),
-                matches[i].rotation_rad,
-                needed,
-                self.config.two_view_config,
-                self._allowed_rotations(i, exits, turn),
-                lambda fit, i=i: self._agrees(i, exits, fit.turned(turn).rotation_rad),
-                bool(self.config.lamp),
-                self.config.port_tolerance_rad,
-            )
+            fit = self._fit(i, features, matches[i].rotation_rad, needed, exits, turn)
             if fit is not None and fit.inliers >= needed:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
                 if ports is not None and not ports.agrees and self.config.port_check:

@@ -154,3 +154,33 @@ def test_the_stored_active_log_has_no_revisit_half_a_turn_off() -> None:
     errors = [abs(v.rotation_error_rad) for v in report.visits if v.rotation_error_rad is not None]
     assert len(errors) == 6 and max(errors) < 0.05
     assert all(v["conflict"] is None for v in api.replay(log).document()["visits"])
+
+
+@pytest.mark.parametrize("verify_rule", [True, False])
+def test_both_rules_fit_at_the_turns_the_ports_allow(
+    monkeypatch: pytest.MonkeyPatch, verify_rule: bool
+) -> None:
+    """Whether the two-view check decides (the default) or only measures the
+    rotation (``--no-verify``), a revisit's fit is the candidate's fit at the turns
+    its ports allow: a cross revisited half a turn off (the fake fits the turn the
+    guess is not at) gets the other turn's rotation, and its exits the other ports."""
+    from pipemap.localizer import Localizer, LocalizerConfig
+    from pipemap.localizer.twoview import TwoViewFit as Fit
+    from tests.localizer.junctions import junction
+
+    cross = (PI, PI / 2, 0.0, -PI / 2)
+
+    def half_turn_off(query, known, config, guess=None, cache=None):  # type: ignore[no-untyped-def]
+        near_half = guess is not None and abs(abs(guess) - PI) < 0.3
+        return Fit(PI, 0.0, 300, 400) if near_half else None
+
+    monkeypatch.setattr(verify, "fit_two_view", half_turn_off)
+    loc = Localizer(LocalizerConfig(verify=verify_rule, active_vision=False))
+    loc.localize(junction(0), exits_rad=cross)
+    loc.depart(0.0)
+    loc.localize(junction(1), exits_rad=(PI, 0.0))
+    loc.depart(PI)
+    d = loc.localize(junction(0), exits_rad=cross)  # the same images: the NCC says 0
+    assert d.known and d.node == 0
+    assert d.two_view is not None and abs(abs(d.two_view.rotation_rad) - PI) < 1e-9
+    assert d.exit_ports == (2, 3, 0, 1)  # behind is now the first visit's ahead
