@@ -320,28 +320,47 @@ def _grown(array: np.ndarray, axis: int) -> np.ndarray:
 
 
 def pairwise_matches(
-    sets: list[ImageSet], config: FastConfig | None = None, every_offset: bool = False
+    sets: list[ImageSet],
+    config: FastConfig | None = None,
+    every_offset: bool = False,
+    pairs: list[tuple[int, int]] | None = None,
 ) -> dict[tuple[int, int], SetMatch]:
-    """Algorithm 2 for every unordered pair ``(i, j)``, ``i < j``, set i as A.
+    """Algorithm 2 for every unordered pair ``(i, j)``, ``i < j``, set i as A, or for
+    the ``pairs`` given only (each ``i < j``).
 
-    Each set is prepared once and every pair is refined, at the offsets a localizer
-    decision would refine (``config.refine_offsets``), or at every cyclic offset
-    with ``every_offset`` (slower; it only matters between different junctions,
-    where all offsets score alike).
+    Each set is prepared once (only those in a pair) and every pair is refined, at
+    the offsets a localizer decision would refine (``config.refine_offsets``), or at
+    every cyclic offset with ``every_offset`` (slower; it only matters between
+    different junctions, where all offsets score alike). A pair's match does not
+    depend on which other pairs are asked for.
     """
     base = config if config is not None else FastConfig()
-    prepared = [prepare(s, base) for s in sets]
     out: dict[tuple[int, int], SetMatch] = {}
     if not sets:
         return out
+    if pairs is None:
+        pairs = [(i, j) for i in range(len(sets)) for j in range(i + 1, len(sets))]
+    later_of: dict[int, list[int]] = {}
+    last_use: dict[int, int] = {}  # a set is prepared when first needed, dropped after
+    for i, j in sorted(set(pairs)):
+        if not 0 <= i < j < len(sets):
+            raise LocalizerError(f"pair {(i, j)} is not two sets i < j of {len(sets)}")
+        later_of.setdefault(i, []).append(j)
+        last_use[i] = last_use[j] = i
+    prepared: dict[int, PreparedSet] = {}
     offsets = sets[0].count if every_offset else base.refine_offsets
-    everything = replace(
-        base, refine_candidates=len(sets), refine_offsets=offsets, runner_up_offsets=offsets
-    )
-    for i in range(len(sets) - 1):
-        later = FastMatcher(everything)
-        for p in prepared[i + 1 :]:
-            later.add(p)
-        for offset, match in enumerate(later.match(prepared[i])):
-            out[(i, i + 1 + offset)] = match
+    for i, later in later_of.items():
+        everything = replace(
+            base, refine_candidates=len(later), refine_offsets=offsets, runner_up_offsets=offsets
+        )
+        matcher = FastMatcher(everything)
+        for k in (i, *later):
+            if k not in prepared:
+                prepared[k] = prepare(sets[k], base)
+        for j in later:
+            matcher.add(prepared[j])
+        for j, match in zip(later, matcher.match(prepared[i]), strict=True):
+            out[(i, j)] = match
+        for k in [k for k in prepared if last_use[k] == i]:
+            del prepared[k]
     return out

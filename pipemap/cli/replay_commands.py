@@ -209,4 +209,5 @@ def _port(value: int | None) -> str:
 def _stat(summary: dict[str, Any]) -> str:
     if not summary["n"]:
         return "none"
-    return f"{summary['mean']:.3f} +- {summary['std']:.3f} (n={summary['n']})"
+    sample = f" of {summary['of']}" if "of" in summary else ""
+    return f"{summary['mean']:.3f} +- {summary['std']:.3f} (n={summary['n']}{sample})"

@@ -1,0 +1,64 @@
+"""The score's pairs of visits (the paper's Table 1 two ways): every pair of one
+junction, and the pairs of different junctions up to a budget, an even seeded sample
+beyond it, so that scoring a thousand-junction log does not compare two million."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pipemap.errors import LocalizerError
+from pipemap.localizer import pairwise_matches
+from pipemap.replay import FileSource, replay
+from pipemap.replay.score import pair_statistics, true_sweeps
+
+LOG = Path(__file__).resolve().parents[2] / "recordings" / "random8_loops.mcap"
+
+
+@pytest.fixture(scope="module")
+def replayed():  # type: ignore[no-untyped-def]
+    source = FileSource(LOG)
+    return replay(source), true_sweeps(source)
+
+
+def test_pairs_asked_for_are_the_pairs_of_all(replayed) -> None:  # type: ignore[no-untyped-def]
+    result, _ = replayed
+    sets = [result.visit_sets[i] for i in sorted(result.visit_sets)][:6]
+    every = pairwise_matches(sets)
+    some = pairwise_matches(sets, pairs=[(4, 5), (0, 3), (0, 1)])
+    assert sorted(some) == [(0, 1), (0, 3), (4, 5)]
+    assert all(some[p] == every[p] for p in some)
+    with pytest.raises(LocalizerError, match="pair"):
+        pairwise_matches(sets, pairs=[(3, 2)])
+
+
+def test_under_the_budget_every_pair_is_compared(replayed) -> None:  # type: ignore[no-untyped-def]
+    result, truths = replayed
+    stats = pair_statistics(result, truths)
+    visits = len(result.visit_sets)
+    assert len(stats.same) + len(stats.different) == visits * (visits - 1) // 2
+    assert "of" not in stats.document()["different"]
+
+
+def test_over_the_budget_the_different_pairs_are_a_seeded_sample(replayed) -> None:  # type: ignore[no-untyped-def]
+    result, truths = replayed
+    every = pair_statistics(result, truths)
+    budget = 10
+    sample = pair_statistics(result, truths, max_different=budget)
+    assert sample.same == every.same  # every pair of one junction, always
+    assert sample.rotation_errors_rad == every.rotation_errors_rad
+    assert len(sample.different) == budget < len(every.different)
+    assert set(sample.different) <= set(every.different)
+    assert pair_statistics(result, truths, max_different=budget) == sample
+    doc = sample.document()["different"]
+    assert doc["n"] == budget and doc["of"] == len(every.different)
+
+
+def test_the_score_text_says_a_sample_is_one() -> None:
+    from pipemap.cli.replay_commands import _stat
+
+    assert _stat({"mean": 0.3, "std": 0.04, "n": 61}) == "0.300 +- 0.040 (n=61)"
+    assert _stat({"mean": 0.3, "std": 0.04, "n": 5000, "of": 20909}) == (
+        "0.300 +- 0.040 (n=5000 of 20909)"
+    )
