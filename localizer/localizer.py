@@ -456,15 +456,21 @@ class Localizer:
         ports; ``None`` if none does. Candidates whose keypoints fit but whose ports
         do not go to ``rejected``."""
         exclude = self._excluded()
+        # A junction whose pipes cannot line up with the exits at any turn is not the
+        # visit's (the port check would pass it over): it takes no candidate's place.
+        allowed = [
+            i
+            for i in range(len(matches))
+            if i != exclude and self._allowed_rotations(i, exits, turn) != ()
+        ]
         # Refined junctions first, then screened ones: the two scores differ in scale.
-        allowed = [i for i in range(len(matches)) if i != exclude]
         ranked = sorted(allowed, key=lambda i: (not matches[i].refined, -matches[i].similarity, i))
         ranked = ranked[: self.config.verify_candidates]
         # The junction the map says this pipe leads to goes first: the similarity may
         # rank it low (a revisit from another pipe, seen from a little off the centre)
         # while its keypoints fit with hundreds of inliers.
         expected = self.expected_node()
-        if expected is not None and expected != exclude:
+        if expected is not None and expected in allowed:
             ranked = [expected, *(i for i in ranked if i != expected)]
         for i in ranked:
             # The map's junction needs fewer inliers than the others (see

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -27,6 +28,7 @@ from pipemap.localizer.localizer import (
     best_candidate,
 )
 from pipemap.localizer.similarity import SetMatch, wrap_angle_rad
+from pipemap.localizer.twoview import TwoViewFit
 from tests.localizer.junctions import (
     CORNER_EXITS,
     FOV_RAD,
@@ -403,14 +405,25 @@ def test_the_junction_the_map_expects_is_tried_first() -> None:
     d = walk(Localizer(LocalizerConfig(verify_candidates=1)))
     assert d.known and d.node == 0
 
-    # Without the map's prior: the most similar junction, 2, is the only one tried,
-    # and its exits do not fit.
+    # Without the map's prior the most similar junction is 2, a dead end: its one
+    # port cannot line up with a T's three exits, so it takes no candidate's place,
+    # and junction 0 is the one candidate tried.
     class NoPrior(Localizer):
         def expected_node(self) -> int | None:
             return None
 
-    d = walk(NoPrior(LocalizerConfig(verify_candidates=1)))
-    assert not d.known and [c for c, _ in d.rejected] == [2]
+    tried: list[tuple[int, int]] = []  # (visit, junction fitted)
+    no_prior = NoPrior(LocalizerConfig(verify_candidates=1))
+    real = no_prior._fit
+
+    def fit(node: int, *args: Any) -> TwoViewFit | None:
+        tried.append((len(no_prior.map.visit_records), node))
+        return real(node, *args)
+
+    no_prior._fit = fit  # type: ignore[method-assign]
+    d = walk(no_prior)
+    assert d.known and d.node == 0 and d.rejected == ()
+    assert [node for visit, node in tried if visit == 4] == [0]
 
 
 @pytest.mark.parametrize("expected_inliers, known", [(24, True), (48, False)])
