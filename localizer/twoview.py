@@ -335,7 +335,7 @@ def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) ->
         keypoints, desc = orb.detectAndCompute(_gray_u8(seen[j]), None)
         if desc is None or not keypoints:
             continue
-        points.append(np.asarray(cv2.KeyPoint_convert(keypoints), dtype=np.float32).reshape(-1, 2))
+        points.append(np.asarray(cv2.KeyPoint.convert(keypoints), dtype=np.float32).reshape(-1, 2))
         images.append(np.full(len(keypoints), j, dtype=np.uint8 if n <= 256 else np.uint16))
         descriptors.append(desc)
     if not points:

@@ -293,7 +293,8 @@ def pair_statistics(
     """
     ids = sorted(i for i in result.visit_sets if i in truths)
     nodes = [truths[i].node for i in ids]
-    same_pairs, different_pairs = [], []
+    same_pairs: list[tuple[int, int]] = []
+    different_pairs: list[tuple[int, int]] = []
     for i in range(len(ids)):
         for j in range(i + 1, len(ids)):
             (same_pairs if nodes[i] == nodes[j] else different_pairs).append((i, j))
