@@ -53,9 +53,9 @@ def test_map_takes_ports_from_the_robot_notes_and_checks_a_revisit_by_them(
     assert [len(n["ports"]) for n in checked["nodes"]] == [3, 1, 2]  # type: ignore[index]
     visits = checked["visits"]
     assert visits[2]["known"] is False  # type: ignore[index]
-    assert visits[2]["rejected"] == [  # type: ignore[index]
-        {"candidate": 0, "reason": "2 exits where the junction has 3 ports"}
-    ]
+    # Two exits can line up with three ports at no turn: junction 0 takes no place
+    # among the two-view check's candidates, so it is neither fitted nor named.
+    assert visits[2]["rejected"] == []  # type: ignore[index]
     assert checked["edges"][0] == {  # type: ignore[index]
         "u": 0,
         "u_port": 1,
@@ -68,3 +68,10 @@ def test_map_takes_ports_from_the_robot_notes_and_checks_a_revisit_by_them(
     assert unchecked["visits"][2]["known"] is True  # type: ignore[index]
     assert unchecked["visits"][2]["node"] == 0  # type: ignore[index]
     assert len(unchecked["nodes"]) == 2  # type: ignore[arg-type]
+    # The paper's threshold rule takes the most similar junction first, and the
+    # port check then names why it passed it over.
+    paper = _map("--no-verify", *folders)
+    assert paper["visits"][2]["known"] is False  # type: ignore[index]
+    assert paper["visits"][2]["rejected"] == [  # type: ignore[index]
+        {"candidate": 0, "reason": "2 exits where the junction has 3 ports"}
+    ]

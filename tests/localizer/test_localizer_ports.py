@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import pytest
 
@@ -14,6 +15,7 @@ from pipemap.localizer.localizer import (
     Localizer,
     LocalizerConfig,
 )
+from pipemap.localizer.twoview import TwoViewFit
 from tests.localizer.junctions import (
     CORNER_EXITS,
     PI,
@@ -115,3 +117,22 @@ def test_a_new_traversal_may_start_at_the_last_junction() -> None:
     d = loc.localize(junction(1))  # left out right after junction 1, allowed now
     assert d.known and d.node == 1
     assert len(loc.map.edges()) == 1
+
+
+def test_a_junction_whose_ports_line_up_at_no_turn_is_not_fitted() -> None:
+    loc = Localizer()
+    loc.localize(junction(0), exits_rad=TEE_EXITS)
+    loc.localize(junction(1), exits_rad=CORNER_EXITS)
+    fitted: list[int] = []
+    real = loc._fit
+
+    def fit(node: int, *args: Any) -> TwoViewFit | None:
+        fitted.append(node)
+        return real(node, *args)
+
+    loc._fit = fit  # type: ignore[method-assign]
+    # The images say T, the scan three pipes 120 degrees apart: as many exits as
+    # ports, but no turn lines them up, so the T takes no candidate's place.
+    d = loc.localize(junction(0), exits_rad=(PI, PI / 3, -PI / 3))
+    assert not d.known and d.node == 2
+    assert 0 not in fitted and d.rejected == ()
