@@ -20,6 +20,7 @@ import logging
 import os
 import re
 import shutil
+import signal
 import socket
 import threading
 import time
@@ -279,6 +280,28 @@ def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
         ray.shutdown()
 
 
+@contextlib.contextmanager
+def _terminate_as_interrupt() -> Iterator[None]:
+    """SIGTERM (``kill``, a scheduler ending the job) stops the batch as Ctrl-C does,
+    and later ones are ignored until the table is written. Without this, the handler
+    ``ray.init`` installs exits at once and leaves the table behind the finished
+    runs. Only the main thread may set a handler; elsewhere SIGTERM is left alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGTERM)
+
+    def stop(signum: int, frame: object) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _interrupted(exc: BaseException) -> bool:
     """Whether a task failed because Ctrl-C reached its worker."""
     cause = getattr(exc, "cause", None)
@@ -371,8 +394,8 @@ def run_batch(
 ) -> BatchSummary:
     """Run every pending run of ``plan`` on Ray and write its folder and the table.
 
-    Ctrl-C stops the batch: running tasks are cancelled, every finished run stays,
-    and the summary says ``interrupted``.
+    Ctrl-C or SIGTERM stops the batch: running tasks are cancelled, every finished
+    run stays and is in the table, and the summary says ``interrupted``.
     """
     _quiet_ray(plan.options.address)  # before Ray is imported: it reads them then
     import ray
@@ -432,7 +455,10 @@ def run_batch(
     if not queue:  # nothing to make: no need for Ray
         summary.rows = table(now=True)
         return summary
-    with ray_session(plan.options.address, plan.options.workers) as workers:
+    with (
+        ray_session(plan.options.address, plan.options.workers) as workers,
+        _terminate_as_interrupt(),
+    ):
         summary.workers = workers
         remote = ray.remote(num_cpus=1, max_retries=1, retry_exceptions=True)(_one_thread(task))
         keep = plan.options.keep_logs
@@ -462,6 +488,7 @@ def run_batch(
             # (a Ray core check, seen with Ray 2.60). Shutting down ends the running
             # tasks (a cluster ends a driver's tasks when the driver leaves).
             summary.interrupted = True
-    summary.rows = table(now=True)
+        # Written before Ray shuts down, while a second SIGTERM is still ignored.
+        summary.rows = table(now=True)
     summary.wall_s = time.perf_counter() - started
     return summary

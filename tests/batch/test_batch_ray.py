@@ -104,6 +104,38 @@ def local(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, s
     return out, interrupted, resumed.stderr
 
 
+def test_sigterm_stops_the_batch_as_ctrl_c_does_with_the_table_whole(
+    spec: Path, tmp_path: Path
+) -> None:
+    # A scheduler's stop, or `kill`: SIGTERM to the batch's own process only. Ray's
+    # driver handler would exit at once (status 1, a C++ stack dump) and leave the
+    # table behind the finished runs.
+    out = tmp_path / "batch"
+    batch = subprocess.Popen(
+        [sys.executable, "-m", "pipemap", "batch", str(spec), "--out", str(out)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        deadline = time.monotonic() + 600
+        while not _finished_runs(out) and batch.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        batch.send_signal(signal.SIGTERM)
+        _, stopped = batch.communicate(timeout=120)
+    finally:
+        if batch.poll() is None:
+            os.killpg(batch.pid, signal.SIGKILL)
+            batch.wait()
+    assert batch.returncode == 130, stopped
+    assert "interrupted" in stopped and "SIGTERM received" not in stopped, stopped
+    assert "Traceback" not in stopped, stopped
+    finished = {p.name for p in _finished_runs(out)}
+    assert 1 <= len(finished) < RUNS
+    assert {r["run_id"] for r in _rows(out)} == finished
+
+
 def _rows(out: Path) -> list[dict[str, str]]:
     with (out / "results.csv").open() as f:
         return list(csv.DictReader(f))
