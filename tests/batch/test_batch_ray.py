@@ -18,7 +18,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import cv2
@@ -69,17 +69,14 @@ def spec(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-@pytest.fixture(scope="module")
-def local(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, str]:
-    """The SPEC run locally with its logs kept: interrupted by Ctrl-C once a run has
-    finished, then resumed. Returns the folder and the two commands' stderr."""
-    out = tmp_path_factory.mktemp("local") / "batch"
-    command = [sys.executable, "-m", "pipemap", "batch", str(spec), "--out", str(out)]
-    # Ctrl-C as a terminal sends it: to the whole process group. The batch starts
-    # with Ctrl-C's default action, as from a terminal: run from a background job
-    # (`pytest &`), this process ignores SIGINT, and a child would inherit that.
-    first = subprocess.Popen(
-        [*command, "--keep-logs"],
+def _stopped_batch(command: list[str], out: Path, stop: Callable[[int], None]) -> tuple[int, str]:
+    """Runs ``command`` (a batch into ``out``) in a session of its own, calls ``stop``
+    with its pid once a run has finished; returns its status and stderr."""
+    # The batch starts with Ctrl-C's default action, as from a terminal: run from a
+    # background job (`pytest &`), this process ignores SIGINT, and a child would
+    # inherit that.
+    batch = subprocess.Popen(
+        command,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -88,16 +85,32 @@ def local(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, s
     )
     try:
         deadline = time.monotonic() + 600
-        while not _finished_runs(out) and first.poll() is None and time.monotonic() < deadline:
+        while not _finished_runs(out) and batch.poll() is None and time.monotonic() < deadline:
             time.sleep(0.2)
-        if first.poll() is None:
-            os.killpg(first.pid, signal.SIGINT)
-        _, interrupted = first.communicate(timeout=120)
+        if batch.poll() is None:
+            stop(batch.pid)
+        _, stderr = batch.communicate(timeout=120)
     finally:
-        if first.poll() is None:
-            os.killpg(first.pid, signal.SIGKILL)
-            first.wait()
-    assert first.returncode == 130, interrupted
+        if batch.poll() is None:
+            os.killpg(batch.pid, signal.SIGKILL)
+            batch.wait()
+    return batch.returncode, stderr
+
+
+def _command(spec: Path, out: Path, *flags: str) -> list[str]:
+    return [sys.executable, "-m", "pipemap", "batch", str(spec), "--out", str(out), *flags]
+
+
+@pytest.fixture(scope="module")
+def local(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, str]:
+    """The SPEC run locally with its logs kept: interrupted by Ctrl-C once a run has
+    finished, then resumed. Returns the folder and the two commands' stderr."""
+    out = tmp_path_factory.mktemp("local") / "batch"
+    # Ctrl-C as a terminal sends it: to the whole process group.
+    status, interrupted = _stopped_batch(
+        _command(spec, out, "--keep-logs"), out, lambda pid: os.killpg(pid, signal.SIGINT)
+    )
+    assert status == 130, interrupted
     assert "interrupted" in interrupted
     resumed = pipemap("batch", str(spec), "--out", str(out), "--keep-logs", "--resume")
     assert resumed.returncode == 0, resumed.stderr
@@ -111,24 +124,10 @@ def test_sigterm_stops_the_batch_as_ctrl_c_does_with_the_table_whole(
     # driver handler would exit at once (status 1, a C++ stack dump) and leave the
     # table behind the finished runs.
     out = tmp_path / "batch"
-    batch = subprocess.Popen(
-        [sys.executable, "-m", "pipemap", "batch", str(spec), "--out", str(out)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
+    status, stopped = _stopped_batch(
+        _command(spec, out), out, lambda pid: os.kill(pid, signal.SIGTERM)
     )
-    try:
-        deadline = time.monotonic() + 600
-        while not _finished_runs(out) and batch.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.2)
-        batch.send_signal(signal.SIGTERM)
-        _, stopped = batch.communicate(timeout=120)
-    finally:
-        if batch.poll() is None:
-            os.killpg(batch.pid, signal.SIGKILL)
-            batch.wait()
-    assert batch.returncode == 130, stopped
+    assert status == 130, stopped
     assert "interrupted" in stopped and "SIGTERM received" not in stopped, stopped
     assert "Traceback" not in stopped, stopped
     finished = {p.name for p in _finished_runs(out)}
