@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -320,7 +321,7 @@ def _grown(array: np.ndarray, axis: int) -> np.ndarray:
 
 
 def pairwise_matches(
-    sets: list[ImageSet],
+    sets: Sequence[ImageSet],
     config: FastConfig | None = None,
     every_offset: bool = False,
     pairs: list[tuple[int, int]] | None = None,

@@ -138,7 +138,7 @@ class LiveView:
         sweeps = sweeps_of(robot, "live run").sweeps
         for sweep in sweeps:
             self._sweeps += 1
-            self._images += sweep.images.count
+            self._images += sweep.count
             if sweep.probe is None:
                 self._waiting.append(sweep)
             else:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,6 +48,7 @@ __all__ = [
     "LoggedExits",
     "LoggedSweep",
     "ReplayResult",
+    "SweepSets",
     "Sweeps",
     "VisitDecision",
     "answer_probes",
@@ -63,17 +64,57 @@ _PROBE_MATCH = 1e-9
 
 @dataclass(frozen=True, eq=False)
 class LoggedSweep:
-    """A complete sweep of the log, as the localizer sees it."""
+    """A complete sweep of the log, as the localizer sees it.
+
+    It keeps the grey frames as the camera gave them, 8 bits a pixel, and makes its
+    :class:`ImageSet` (float32, four times the size) each time :attr:`images` is
+    asked for: a replay holds every sweep of the log at once, and a 400 px sweep is
+    0.96 MB so against 3.8 (a thousand-junction log has thousands of sweeps)."""
 
     sweep_id: int
     visit_id: int
     end_ns: int
-    images: ImageSet
+    #: ``(N, height, width)`` uint8, read-only.
+    frames: np.ndarray
+    fov_rad: float
+    camera_angle_rad: float
     #: ``(kind, yaw_rad, forward_m, left_m)`` of a probe sweep, else ``None``.
     probe: tuple[str, float, float, float] | None = None
     #: The robot's (roll, pitch) as its IMU read them during the sweep (0.0, 0.0 for a
     #: level robot and for logs from before the log held them).
     imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def images(self) -> ImageSet:
+        """The sweep as an image set (a new one each time: keep it only while needed)."""
+        return ImageSet(
+            self.frames,
+            fov_rad=self.fov_rad,
+            camera_angle_rad=self.camera_angle_rad,
+            imu_tilt_rad=self.imu_tilt_rad,
+        )
+
+    @property
+    def count(self) -> int:
+        """How many images the sweep has."""
+        return int(self.frames.shape[0])
+
+
+class SweepSets(Mapping[int, ImageSet]):
+    """Sweeps by id, each read as its :class:`ImageSet` only when looked up (see
+    :class:`LoggedSweep`)."""
+
+    def __init__(self, sweeps: Mapping[int, LoggedSweep]) -> None:
+        self._sweeps = dict(sweeps)
+
+    def __getitem__(self, sweep_id: int) -> ImageSet:
+        return self._sweeps[sweep_id].images
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._sweeps)
+
+    def __len__(self) -> int:
+        return len(self._sweeps)
 
 
 @dataclass(frozen=True)
@@ -121,8 +162,9 @@ class ReplayResult:
     images: int = 0
     #: Camera angle of each sweep's first image relative to the robot (robot data).
     camera_angles: dict[int, float] = field(default_factory=dict)
-    #: The image set of each visit's own sweep (probes aside), by sweep id.
-    visit_sets: dict[int, ImageSet] = field(default_factory=dict)
+    #: The image set of each visit's own sweep (probes aside), by sweep id; made on
+    #: each lookup (:class:`SweepSets`).
+    visit_sets: Mapping[int, ImageSet] = field(default_factory=dict)
     #: Positions in ``visits`` before which the path is broken (a visit was lost).
     breaks: tuple[int, ...] = ()
     #: The localizer after the replay: its map and its junctions' sweeps, ready to
@@ -229,12 +271,15 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
                 if len(sweep.frames) != start.image_count:
                     skip(sweep, f"{len(sweep.frames)} images of the {start.image_count} commanded")
                     continue
-                try:
-                    images = ImageSet(
-                        np.stack(sweep.frames),
+                frames = np.stack(sweep.frames)
+                frames.setflags(write=False)
+                tilt = (start.imu_roll_rad, start.imu_pitch_rad)
+                try:  # checked once here: a sweep that makes no image set is skipped
+                    ImageSet(
+                        frames,
                         fov_rad=start.fov_rad,
                         camera_angle_rad=start.camera_angle_rad,
-                        imu_tilt_rad=(start.imu_roll_rad, start.imu_pitch_rad),
+                        imu_tilt_rad=tilt,
                     )
                 except (PipemapError, ValueError) as exc:
                     skip(sweep, str(exc))
@@ -247,10 +292,16 @@ def sweeps_of(messages: list[LogMessage], name: str = "log") -> Sweeps:
                         start.probe_forward_m,
                         start.probe_left_m,
                     )
-                tilt = (start.imu_roll_rad, start.imu_pitch_rad)
                 out.sweeps.append(
                     LoggedSweep(
-                        command.sweep_id, start.visit_id, m.log_time_ns, images, probe, tilt
+                        command.sweep_id,
+                        start.visit_id,
+                        m.log_time_ns,
+                        frames,
+                        start.fov_rad,
+                        start.camera_angle_rad,
+                        probe,
+                        tilt,
                     )
                 )
     if current is not None:
@@ -424,9 +475,9 @@ def replay(
         warnings=warnings,
         sweeps=len(sweeps),
         duration_ns=duration,
-        images=sum(s.images.count for s in sweeps),
-        camera_angles={s.sweep_id: s.images.camera_angle_rad for s in sweeps},
-        visit_sets={s.sweep_id: s.images for s in visits},
+        images=sum(s.count for s in sweeps),
+        camera_angles={s.sweep_id: s.camera_angle_rad for s in sweeps},
+        visit_sets=SweepSets({s.sweep_id: s for s in visits}),
         breaks=tuple(breaks),
         localizer=localizer,
         illumination=localizer.config.illumination if localizer.config.lamp else None,

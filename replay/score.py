@@ -27,8 +27,9 @@ import csv
 import io
 import json
 import statistics
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from google.protobuf.message import DecodeError
@@ -36,6 +37,8 @@ from google.protobuf.message import DecodeError
 from pipemap.errors import LogFormatError
 from pipemap.localizer import (
     FastConfig,
+    IlluminationConfig,
+    ImageSet,
     LocalizerConfig,
     TopoMap,
     normalised,
@@ -276,6 +279,38 @@ def true_sweeps(source: MessageSource) -> dict[int, TrueSweep]:
 MAX_DIFFERENT_PAIRS = 5000
 
 
+class _SeenSets(Sequence[ImageSet]):
+    """The visit sets of sweeps ``ids`` as the localizer saw them (normalised under a
+    lamp), each made when looked up: :func:`pairwise_matches` prepares each set once
+    and keeps only what it prepared, so the float32 sets of a whole log are never
+    all held at once."""
+
+    def __init__(
+        self,
+        sets: Mapping[int, ImageSet],
+        ids: list[int],
+        illumination: IlluminationConfig | None,
+    ) -> None:
+        self._sets, self._ids, self._illumination = sets, ids, illumination
+
+    @overload
+    def __getitem__(self, index: int) -> ImageSet: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Sequence[ImageSet]: ...
+
+    def __getitem__(self, index: int | slice) -> ImageSet | Sequence[ImageSet]:
+        if isinstance(index, slice):
+            return [self[k] for k in range(len(self))[index]]
+        image_set = self._sets[self._ids[index]]
+        if self._illumination is None:
+            return image_set
+        return normalised(image_set, self._illumination)
+
+    def __len__(self) -> int:
+        return len(self._ids)
+
+
 def pair_statistics(
     result: ReplayResult,
     truths: dict[int, TrueSweep],
@@ -303,10 +338,8 @@ def pair_statistics(
         rng = np.random.default_rng(0)
         keep = np.sort(rng.choice(total_different, size=max_different, replace=False))
         different_pairs = [different_pairs[k] for k in keep]
-    sets = [result.visit_sets[i] for i in ids]
-    if result.illumination is not None:
-        sets = [normalised(s, result.illumination) for s in sets]
-    headings = [truths[i].yaw_rad - s.camera_angle_rad for i, s in zip(ids, sets, strict=True)]
+    sets = _SeenSets(result.visit_sets, ids, result.illumination)
+    headings = [truths[i].yaw_rad - result.camera_angles[i] for i in ids]
     same: list[float] = []
     different: list[float] = []
     errors: list[float] = []

@@ -4,13 +4,17 @@ beyond it, so that scoring a thousand-junction log does not compare two million.
 
 from __future__ import annotations
 
+import dataclasses
+import weakref
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pipemap.errors import LocalizerError
-from pipemap.localizer import pairwise_matches
-from pipemap.replay import FileSource, replay
+from pipemap.localizer import ImageSet, pairwise_matches
+from pipemap.replay import FileSource, replay, sweeps_of
 from pipemap.replay.score import pair_statistics, true_sweeps
 
 LOG = Path(__file__).resolve().parents[2] / "recordings" / "random8_loops.mcap"
@@ -62,3 +66,51 @@ def test_the_score_text_says_a_sample_is_one() -> None:
     assert _stat({"mean": 0.3, "std": 0.04, "n": 5000, "of": 20909}) == (
         "0.300 +- 0.040 (n=5000 of 20909)"
     )
+
+
+class _Watched(Mapping[int, ImageSet]):
+    """A replay's visit sets, counting how many of those handed out are alive at once."""
+
+    def __init__(self, sets: Mapping[int, ImageSet]) -> None:
+        self._sets = sets
+        self.alive = self.most_alive = 0
+
+    def _gone(self) -> None:
+        self.alive -= 1
+
+    def __getitem__(self, sweep_id: int) -> ImageSet:
+        image_set = self._sets[sweep_id]
+        self.alive += 1
+        self.most_alive = max(self.most_alive, self.alive)
+        weakref.finalize(image_set, self._gone)
+        return image_set
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._sets)
+
+    def __len__(self) -> int:
+        return len(self._sets)
+
+
+def test_the_pairs_hold_no_more_than_a_set_at_a_time(replayed) -> None:  # type: ignore[no-untyped-def]
+    # A thousand-junction log has thousands of visit sets, 3.8 MB each at 400 px as
+    # float32: the replay keeps each sweep's 8-bit frames and makes its set on each
+    # lookup, and the pairs prepare one set at a time from it.
+    result, truths = replayed
+    sweep = next(iter(result.visit_sets))
+    assert result.visit_sets[sweep] is not result.visit_sets[sweep]
+    watched = _Watched(result.visit_sets)
+    stats = pair_statistics(dataclasses.replace(result, visit_sets=watched), truths)
+    assert stats == pair_statistics(result, truths)
+    assert len(watched) > 10 and watched.most_alive == 1
+
+
+def test_a_replay_keeps_each_sweep_in_8_bits() -> None:
+    sweeps = sweeps_of(FileSource(LOG).robot_messages()).sweeps
+    assert {s.frames.dtype for s in sweeps} == {np.dtype(np.uint8)}
+    first = sweeps[0]
+    assert not first.frames.flags.writeable
+    images = first.images
+    assert images.images.dtype == np.float32
+    assert np.array_equal(images.images, first.frames)
+    assert (images.count, images.camera_angle_rad) == (first.count, first.camera_angle_rad)
