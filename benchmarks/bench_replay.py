@@ -24,7 +24,7 @@ from pathlib import Path
 
 from pipemap import __version__
 from pipemap.recorder import RecordSettings, record_run
-from pipemap.replay import FileSource, replay
+from pipemap.replay import REPLAY_TOPICS, FileSource, replay
 from pipemap.sim.network import build_network
 
 RECORDINGS = Path(__file__).resolve().parents[1] / "recordings"
@@ -32,7 +32,7 @@ RECORDINGS = Path(__file__).resolve().parents[1] / "recordings"
 
 def _replay_once(path: Path) -> tuple[float, float, float, int, int]:
     start, cpu = time.perf_counter(), time.process_time()
-    result = replay(FileSource(path))
+    result = replay(FileSource(path, REPLAY_TOPICS))  # as `pipemap replay` reads it
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
     return wall, cpu, result.duration_ns / 1e9, result.images, len(result.visits)
 

@@ -7,8 +7,16 @@ a replay with the log's ground truth.
 
 from __future__ import annotations
 
-from pipemap.replay.replayer import LoggedSweep, ReplayResult, VisitDecision, replay, sweeps_of
+from pipemap.replay.replayer import (
+    REPLAY_TOPICS,
+    LoggedSweep,
+    ReplayResult,
+    VisitDecision,
+    replay,
+    sweeps_of,
+)
 from pipemap.replay.score import (
+    SCORE_TOPICS,
     PairStatistics,
     ScoreReport,
     VisitScore,
@@ -20,6 +28,8 @@ from pipemap.replay.score import (
 from pipemap.replay.source import FileSource, MemorySource, MessageSource, PackedLog, ordered
 
 __all__ = [
+    "REPLAY_TOPICS",
+    "SCORE_TOPICS",
     "FileSource",
     "LoggedSweep",
     "MemorySource",

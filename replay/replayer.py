@@ -45,6 +45,7 @@ from pipemap.recorder.schemas import CompressedImage, Log, NodeEvent, SweepComma
 from pipemap.replay.source import MessageSource
 
 __all__ = [
+    "REPLAY_TOPICS",
     "LoggedExits",
     "LoggedSweep",
     "ReplayResult",
@@ -57,6 +58,10 @@ __all__ = [
     "sweeps_of",
     "visit_label",
 ]
+
+#: The topics a replay reads (:func:`sweeps_of`, :func:`node_events_of`): a source
+#: may hold these alone (:class:`replay.source.FileSource`'s ``topics``).
+REPLAY_TOPICS = (Topic.SWEEP, Topic.IMAGE, Topic.NODE, Topic.EVENTS)
 
 #: A probe in the log answers a request for the same kind and move, to this much.
 _PROBE_MATCH = 1e-9
@@ -158,6 +163,7 @@ class ReplayResult:
     integrity: Integrity
     warnings: list[str] = field(default_factory=list)
     sweeps: int = 0
+    #: The log's duration (:attr:`replay.source.MessageSource.duration_ns`).
     duration_ns: int = 0
     images: int = 0
     #: Camera angle of each sweep's first image relative to the robot (robot data).
@@ -467,14 +473,13 @@ def replay(
         )
     if not visits:
         warnings.append(f"{source.name}: no complete sweep of a visit in this log; an empty map")
-    duration = messages[-1].log_time_ns - messages[0].log_time_ns if messages else 0
     return ReplayResult(
         visits=decided,
         topomap=localizer.map,
         integrity=source.integrity,
         warnings=warnings,
         sweeps=len(sweeps),
-        duration_ns=duration,
+        duration_ns=source.duration_ns,
         images=sum(s.count for s in sweeps),
         camera_angles={s.sweep_id: s.camera_angle_rad for s in sweeps},
         visit_sets=SweepSets({s.sweep_id: s for s in visits}),

@@ -55,10 +55,11 @@ from pipemap.replay.coverage import (
     ports_correct,
     true_network,
 )
-from pipemap.replay.replayer import ReplayResult, replay, visit_label
+from pipemap.replay.replayer import REPLAY_TOPICS, ReplayResult, replay, visit_label
 from pipemap.replay.source import MessageSource
 
 __all__ = [
+    "SCORE_TOPICS",
     "PairStatistics",
     "ScoreReport",
     "VisitScore",
@@ -270,6 +271,10 @@ def true_sweeps(source: MessageSource) -> dict[int, TrueSweep]:
     if not truths:
         raise LogFormatError(f"{source.name}: no ground truth (/truth/sweep) to score against")
     return truths
+
+
+#: The topics a score reads: the replay's and the truth of sweeps and of the network.
+SCORE_TOPICS = (*REPLAY_TOPICS, Topic.TRUE_SWEEP, Topic.NETWORK)
 
 
 #: Pairs of visits of different junctions compared at most; more are sampled. A log of

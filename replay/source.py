@@ -8,7 +8,7 @@ sequence)``, never in file order, plus the log's run metadata and integrity. The
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -63,6 +63,12 @@ class MessageSource(Protocol):
         """Every ``/truth`` message, in the total order (for scoring only)."""
         ...
 
+    @property
+    def duration_ns(self) -> int:
+        """Log time from the first message to the last (of every topic a file holds,
+        of the ``/robot`` ones in memory)."""
+        ...
+
     def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
         """The messages of every topic under ``prefix``, by topic, in file order
         (for viewing, which orders each topic by time itself)."""
@@ -90,14 +96,28 @@ class MemorySource:
     def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
         return _grouped(m for m in self.messages if m.topic.startswith(prefix))
 
+    @property
+    def duration_ns(self) -> int:
+        times = [m.log_time_ns for m in self.messages if m.topic.startswith(ROBOT_PREFIX)]
+        return max(times) - min(times) if times else 0
+
 
 class FileSource:
-    """A log file, read once; the truth is kept apart and handed out only on request."""
+    """A log file, read once; the truth is kept apart and handed out only on request.
 
-    def __init__(self, path: Path | str) -> None:
+    ``topics``, if given, are the only ``/robot`` and ``/truth`` topics kept: a replay
+    reads four of the log's topics, and the others (the IMU, wheels, ranges,
+    controller and true poses: nine messages in ten) need not be held. The counts,
+    times and integrity still cover the whole log."""
+
+    def __init__(self, path: Path | str, topics: Collection[str] | None = None) -> None:
         self.path = Path(path)
-        keep = (ROBOT_PREFIX, "/truth/")
-        self._contents = read_log(self.path, keep=lambda topic: topic.startswith(keep))
+        prefixes = (ROBOT_PREFIX, "/truth/")
+        wanted = None if topics is None else frozenset(topics)
+        self._contents = read_log(
+            self.path,
+            keep=lambda topic: topic.startswith(prefixes) if wanted is None else topic in wanted,
+        )
         topics = {c.topic for c in self._contents.channels.values()}
         missing = [t for t in REQUIRED_TOPICS if t not in topics]
         # A whole log without the camera is not one to replay; a log cut short or
@@ -117,6 +137,10 @@ class FileSource:
     @property
     def integrity(self) -> Integrity:
         return self._contents.integrity
+
+    @property
+    def duration_ns(self) -> int:
+        return self._contents.duration_ns
 
     @property
     def problem(self) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -51,12 +52,15 @@ def localizer_config(args: argparse.Namespace) -> Any:
     )
 
 
-def open_source(args: argparse.Namespace, err: TextIO) -> Any:
-    """The log ``args.log`` as a replay source; warns on ``err`` when it is cut or damaged."""
+def open_source(
+    args: argparse.Namespace, err: TextIO, topics: Collection[str] | None = None
+) -> Any:
+    """The log ``args.log`` as a replay source holding ``topics`` (default: every
+    ``/robot`` and ``/truth`` topic); warns on ``err`` when it is cut or damaged."""
     from pipemap.recorder import Integrity
     from pipemap.replay import FileSource
 
-    source = FileSource(Path(args.log))
+    source = FileSource(Path(args.log), topics)
     contents = source.contents
     for damage in contents.damage:
         err.write(f"pipemap: warning: {args.log}: damaged {damage.describe()}\n")
@@ -84,12 +88,12 @@ def progress_printer(err: TextIO) -> Any:
 def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log and write its map document."""
     from pipemap.localizer import dumps_document
-    from pipemap.replay import replay
+    from pipemap.replay import REPLAY_TOPICS, replay
 
     target = output_file(args.output, "-o", args.force)
     graphml = output_file(args.graphml, "--graphml", args.force)
     config = localizer_config(args)
-    source = open_source(args, err)
+    source = open_source(args, err, REPLAY_TOPICS)
     result = replay(source, config, progress_printer(err))
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
@@ -114,13 +118,13 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 
 def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log, compare with its truth, print (and save) the score."""
-    from pipemap.replay import replay, score_replay
+    from pipemap.replay import SCORE_TOPICS, replay, score_replay
 
     folder = None
     if args.save_results is not None:
         folder = output_folder(args.save_results, "--save-results", args.force)
     config = localizer_config(args)
-    source = open_source(args, err)
+    source = open_source(args, err, SCORE_TOPICS)
     result = replay(source, config, progress_printer(err))
     report = score_replay(result, source, config.threshold, config.fast)
     for warning in result.warnings:
