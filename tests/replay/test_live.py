@@ -10,8 +10,10 @@ with its magic bytes only once the writer has closed it, after the last sweep).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -70,6 +72,21 @@ def _stop(process: subprocess.Popen[Any]) -> None:
             process.wait()
 
 
+def _stop_server(process: subprocess.Popen[Any]) -> None:
+    """Stop the server, started in a session of its own, and everything in it: the
+    ``rerun`` on PATH may be a wrapper (a pyenv shim, rerun-sdk's Python entry point)
+    that runs the server as a child and does not pass SIGTERM on. Stopping the
+    wrapper alone left the server running after the tests."""
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, sig)
+        try:
+            process.wait(timeout=20)
+            return
+        except subprocess.TimeoutExpired:
+            continue
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
     found = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
@@ -81,12 +98,13 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         env={**os.environ, "RERUN_ANALYTICS": "false"},
+        start_new_session=True,
     )
     try:
         _wait_listening(port, process)
         yield Server(f"rerun+http://127.0.0.1:{port}/proxy", saved, process)
     finally:
-        _stop(process)
+        _stop_server(process)
 
 
 def _read(path: Path) -> dict[str, list[Any]]:
@@ -175,7 +193,7 @@ def test_the_live_view_ends_holding_the_whole_run_and_its_replay(
     streamed: tuple[Server, Path, dict[str, list[Any]], subprocess.CompletedProcess[str]],
 ) -> None:
     server, log, _, _ = streamed
-    _stop(server.process)  # the server closes its file
+    _stop_server(server.process)  # the server closes its file
     received = _read(server.saved)
     counts = read_log(log).counts
     assert rows(received, "/camera/image", "EncodedImage:blob") == counts[Topic.IMAGE]
