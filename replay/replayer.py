@@ -73,8 +73,8 @@ class LoggedSweep:
 
     It keeps the grey frames as the camera gave them, 8 bits a pixel, and makes its
     :class:`ImageSet` (float32, four times the size) each time :attr:`images` is
-    asked for: a replay holds every sweep of the log at once, and a 400 px sweep is
-    0.96 MB so against 3.8 (a thousand-junction log has thousands of sweeps)."""
+    asked for. A replay holds every sweep of the log at once: a 400 px sweep takes
+    0.96 MB so, 3.8 MB as float32, and a thousand-junction log has thousands."""
 
     sweep_id: int
     visit_id: int
