@@ -383,22 +383,23 @@ def _blocked_event(data: bytes) -> int | None:
 
 
 class _LoggedProbes:
-    """Answers probe requests from the probe sweeps the log holds for one visit."""
+    """Answers probe requests from the probe sweeps the log holds for one visit (their
+    image sets made here, before the decision: they are the camera's, not its work)."""
 
     def __init__(self, probes: list[LoggedSweep]) -> None:
-        self.probes = probes
+        self.probes = [(sweep.probe, sweep.images) for sweep in probes]
         self.not_in_log = 0
 
     def probe(self, request: ProbeRequest) -> ImageSet | None:
         wanted = (request.yaw_rad, request.forward_m, request.left_m)
-        for sweep in self.probes:
-            assert sweep.probe is not None
-            kind, *move = sweep.probe
+        for probe, images in self.probes:
+            assert probe is not None
+            kind, *move = probe
             if kind == request.kind.value and all(
                 math.isclose(a, b, rel_tol=0.0, abs_tol=_PROBE_MATCH)
                 for a, b in zip(move, wanted, strict=True)
             ):
-                return sweep.images
+                return images
         self.not_in_log += 1
         return None
 
@@ -448,11 +449,12 @@ def replay(
         scan = events.get(sweep.visit_id)
         exits = None if scan is None else scan.exits_rad
         odometer = None if scan is None else scan.odometer_m
+        # The sets are made before the clock starts: the latency is the decision's.
+        images, answers = sweep.images, _LoggedProbes(probes.get(sweep.visit_id, []))
         start = time.perf_counter()
-        decision, missing = answer_probes(
-            localizer, sweep.images, probes.get(sweep.visit_id, []), exits, odometer
-        )
+        decision = localizer.localize(images, answers, exits, odometer)
         latency = time.perf_counter() - start
+        missing = answers.not_in_log
         for given_up in () if scan is None else scan.blocked_rad:
             localizer.depart(given_up)
             localizer.block()
