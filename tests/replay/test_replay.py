@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
@@ -13,7 +14,8 @@ from mcap.writer import Writer as McapWriter
 from pipemap.localizer import LocalizerConfig, dumps_document
 from pipemap.recorder import METADATA_RUN, LogMessage, LogWriter, Topic, read_log, schemas
 from pipemap.recorder.metadata import lamp_strength
-from pipemap.replay import FileSource, replay
+from pipemap.replay import FileSource, LoggedSweep, replay
+from pipemap.replay import replayer as replayer_module
 
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
@@ -283,3 +285,33 @@ def test_departures_given_up_are_told_apart_from_the_one_taken() -> None:
     events = node_events_of(messages)
     assert (events[1].blocked_rad, events[1].departure_rad) == ((0.5,), -1.5)
     assert (events[2].blocked_rad, events[2].departure_rad) == ((0.0,), None)
+
+
+def test_the_latency_clock_times_the_decision_not_unpacking_the_images(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # A sweep is kept in 8 bits and made into its float32 set on use: the visit's set
+    # and its probes' are made before the clock starts, as the camera's data, so the
+    # latency `pipemap score` reports is the localizer's alone. paper_active has probes.
+    events: list[str] = []
+    made = LoggedSweep.images
+
+    def images(sweep: LoggedSweep) -> object:
+        events.append("set")
+        return made.fget(sweep)  # type: ignore[attr-defined]
+
+    def perf_counter() -> float:
+        events.append("clock")
+        return 0.0
+
+    monkeypatch.setattr(LoggedSweep, "images", property(images))
+    monkeypatch.setattr(replayer_module, "time", types.SimpleNamespace(perf_counter=perf_counter))
+    source = FileSource(Path(__file__).resolve().parents[2] / "recordings" / "paper_active.mcap")
+    result = replay(source)
+    assert events.count("clock") == 2 * len(result.visits)
+    assert events.count("set") > len(result.visits)  # the probes' sets too
+    timing = False
+    for event in events:
+        if event == "clock":
+            timing = not timing
+        assert not (timing and event == "set"), "a set was made while the clock ran"
