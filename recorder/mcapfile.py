@@ -221,7 +221,9 @@ class _Walker:
             out.metadata.setdefault(name, values)
         elif opcode == Opcode.DATA_END:
             (expected,) = body.unpack(U32)
-            if expected != 0 and expected != zlib.crc32(self.data[:position]) and not out.lost:
+            # On a view: a slice of the bytes would copy the whole data section.
+            section = memoryview(self.data)[:position]
+            if expected != 0 and expected != zlib.crc32(section) and not out.lost:
                 out.lost.append(
                     Lost(
                         position,

@@ -35,9 +35,11 @@ def rerun_cli(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([found, *args], capture_output=True, text=True, timeout=300, env=env)
 
 
-def write_synthetic_log(path: Path, messages: int = 600, chunk_bytes: int = 4096) -> list[str]:
-    """A log of ranges, poses and small images in many chunks; returns the topics
-    written, in order."""
+def write_synthetic_log(
+    path: Path, messages: int = 600, chunk_bytes: int = 4096, image_px: int = 16
+) -> list[str]:
+    """A log of ranges, poses and (by default small) images of noise in many chunks;
+    returns the topics written, in order."""
     rng = np.random.default_rng(7)
     topics: list[str] = []
     with (
@@ -49,7 +51,7 @@ def write_synthetic_log(path: Path, messages: int = 600, chunk_bytes: int = 4096
         for i in range(messages):
             t = i * 10_000_000
             if i % 50 == 0:
-                image = rng.integers(0, 255, (16, 16, 3), dtype=np.uint8)
+                image = rng.integers(0, 255, (image_px, image_px, 3), dtype=np.uint8)
                 writer.write(Topic.IMAGE, t, image_message(t, image))
                 topics.append(Topic.IMAGE)
             elif i % 3 == 0:

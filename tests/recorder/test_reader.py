@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import struct
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -194,3 +195,20 @@ def test_missing_file_and_folder_are_refused(tmp_path: Path) -> None:
         read_log(tmp_path / "nothing.mcap")
     with pytest.raises(LogFormatError, match="is a folder"):
         read_log(tmp_path)
+
+
+def test_reading_holds_the_file_once(tmp_path: Path) -> None:
+    """A log is read into memory once: checking the data section's CRC must not copy
+    it (that copy once doubled the peak of every read of a long log)."""
+    path = tmp_path / "long.mcap"
+    write_synthetic_log(path, messages=6000, image_px=96)
+    size = path.stat().st_size
+    assert size > 2_000_000
+    tracemalloc.start()
+    try:
+        contents = read_log(path, keep=lambda _topic: False)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert contents.integrity is Integrity.OK and not contents.messages
+    assert peak < 1.5 * size, f"peak {peak} bytes for a {size}-byte file"
