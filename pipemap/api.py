@@ -126,13 +126,14 @@ def _source(log: Log | MessageSource | str | Path) -> MessageSource:
 def replay(
     log: Log | MessageSource | str | Path,
     config: LocalizerConfig | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
 ) -> ReplayResult:
     """Rebuild the map of ``log`` with a new localizer, from its ``/robot`` topics only.
 
     The same log and settings always give the same map document
     (``result.document()``). ``config`` defaults to pipemap's defaults;
-    :data:`pipemap.localizer.PAPER` is the paper's rule.
+    :data:`pipemap.localizer.PAPER` is the paper's rule. ``progress`` is called with
+    the visits decided so far and their total, ``None`` until the log has been read.
     """
     return _replay(_source(log), config, progress)
 

@@ -8,7 +8,7 @@ sequence)``, never in file order, plus the log's run metadata and integrity. The
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Collection, Iterable, Sequence
+from collections.abc import Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -50,6 +50,12 @@ class MessageSource(Protocol):
         """Every ``/robot`` message, in the total order."""
         ...
 
+    def robot_stream(self) -> Iterator[LogMessage]:
+        """The ``/robot`` messages one at a time: in the total order, or as a file is
+        read (in file order, which a replay puts in the total order itself). Once it
+        is exhausted the integrity, duration, metadata and truth are final."""
+        ...
+
     def run_metadata(self) -> dict[str, str]:
         """The ``pipemap.run`` metadata record."""
         ...
@@ -86,6 +92,9 @@ class MemorySource:
 
     def robot_messages(self) -> list[LogMessage]:
         return ordered([m for m in self.messages if m.topic.startswith(ROBOT_PREFIX)])
+
+    def robot_stream(self) -> Iterator[LogMessage]:
+        return iter(self.robot_messages())
 
     def run_metadata(self) -> dict[str, str]:
         return dict(self.metadata)
@@ -156,6 +165,9 @@ class FileSource:
         if self._robot is None:
             self._robot = ordered(_joined(self.by_topic(ROBOT_PREFIX)))
         return list(self._robot)
+
+    def robot_stream(self) -> Iterator[LogMessage]:
+        return iter(self.robot_messages())
 
     def run_metadata(self) -> dict[str, str]:
         # Absent only where its record was damaged (the reader accepts that log).

@@ -76,8 +76,10 @@ def progress_printer(err: TextIO) -> Any:
     if not err.isatty():
         return None
 
-    def show(done: int, total: int) -> None:
-        err.write(f"\rreplaying: {done}/{total} visits ")
+    def show(done: int, total: int | None) -> None:
+        # The total is known once the whole log has been read.
+        told = f"{done}/{total}" if total else f"{done}"
+        err.write(f"\rreplaying: {told} visits ")
         if done == total:
             err.write("\n")
         err.flush()
@@ -94,7 +96,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     graphml = output_file(args.graphml, "--graphml", args.force)
     config = localizer_config(args)
     source = open_source(args, err, REPLAY_TOPICS)
-    result = replay(source, config, progress_printer(err))
+    result = replay(source, config, progress_printer(err), keep_sets=False)
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
     text = dumps_document(result.document())

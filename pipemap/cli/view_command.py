@@ -207,10 +207,10 @@ class _Child:
                     spool.flush()
                     pickle.dump(_SPOOLED, pipe, protocol=_PROTOCOL)
                     pipe.flush()
-                    done = replay(source, config(), progress_printer(err))
-                    # The view needs the decisions, not the visits' image sets or the
-                    # localizer's database of junctions.
-                    payload: Any = dataclasses.replace(done, visit_sets={}, localizer=None)
+                    done = replay(source, config(), progress_printer(err), keep_sets=False)
+                    # The view needs the decisions, not the visits' image sets (not
+                    # kept) or the localizer's database of junctions.
+                    payload: Any = dataclasses.replace(done, localizer=None)
                     status = 0
                 except BaseException as exc:  # noqa: BLE001  (the parent reports it)
                     payload = exc
@@ -294,7 +294,7 @@ def _view(
         from pipemap.replay import replay
 
         source = open_log()
-        done = replay(source, config(), progress_printer(err))
+        done = replay(source, config(), progress_printer(err), keep_sets=False)
         _show(source, done, target)
     else:
         child = _Child(open_log, config, err, spool)
