@@ -3,7 +3,8 @@
 A log is an MCAP file of protobuf messages (Foxglove's well-known schemas where one
 fits, pipemap's own in ``schemas/pipemap_log.proto``); topics and metadata are
 named in :mod:`recorder.topics`. :func:`record_run` writes a run, :func:`read_log`
-reads one back: whole, up to where it was cut, or every chunk but the damaged ones.
+reads one back: whole, up to where it was cut, or every chunk but the damaged ones;
+:func:`iter_log` reads it as a stream, a message at a time, for a log too long to hold.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from pipemap.recorder.reader import (
     LogChannel,
     LogContents,
     LogMessage,
+    LogStream,
+    iter_log,
     read_log,
 )
 from pipemap.recorder.topics import FORMAT_VERSION, METADATA_RESULT, METADATA_RUN, TOPICS, Topic
@@ -67,6 +70,7 @@ __all__ = [
     "LogChannel",
     "LogContents",
     "LogMessage",
+    "LogStream",
     "LogWriter",
     "MapPolicy",
     "OnlineLocalizer",
@@ -75,6 +79,7 @@ __all__ = [
     "RecordSettings",
     "RunObserver",
     "Topic",
+    "iter_log",
     "read_log",
     "record_run",
 ]

@@ -16,6 +16,11 @@ Where something is wrong it does what ``mcap recover`` and ``mcap doctor`` do:
 * a damaged summary or footer loses nothing (every message is in the data section),
   but it is damage all the same.
 
+The walk is a :class:`Walk`, which hands the messages out as it reads them, in file
+order; :func:`scan` calls a function with each instead. Either reads the file's
+``bytes`` or a :class:`FileBytes` that reads it from disk as it goes, so that a log
+of gigabytes is walked holding about one chunk of it.
+
 The records themselves are read by :mod:`recorder.mcaprecords`, the header, summary
 and footer around the data section by :mod:`recorder.mcapsummary`.
 """
@@ -23,13 +28,14 @@ and footer around the data section by :mod:`recorder.mcapsummary`.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import struct
-import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 from mcap.opcode import Opcode
 
+from pipemap.recorder.filebytes import ByteSource, FileBytes, crc32_between, unpack_at
 from pipemap.recorder.mcaprecords import (
     CHUNK,
     HEAD,
@@ -54,8 +60,20 @@ from pipemap.recorder.mcapsummary import (
     read_summary,
 )
 
-__all__ = ["MAGIC", "Lost", "McapHeaderError", "Scan", "scan"]
+__all__ = [
+    "MAGIC",
+    "ByteSource",
+    "FileBytes",
+    "Lost",
+    "McapHeaderError",
+    "Message",
+    "Scan",
+    "Walk",
+    "scan",
+]
 
+#: A message as the walk hands it on: topic, sequence, log time in ns, payload.
+Message = tuple[str, int, int, bytes]
 #: Called with (topic, sequence, log time in ns, payload) for every message read.
 MessageSink = Callable[[str, int, int, bytes], None]
 
@@ -97,9 +115,8 @@ class Scan:
 
 
 class _Walker:
-    def __init__(self, data: bytes, on_message: MessageSink) -> None:
+    def __init__(self, data: ByteSource) -> None:
         self.data = data
-        self.on_message = on_message
         self.out = Scan()
         self.summary: Summary | None = None
         self.chunk_at: dict[int, ChunkIndex] = {}
@@ -134,7 +151,7 @@ class _Walker:
         data = self.data
         if position + HEAD.size + CHUNK.size + 4 > len(data):
             return False
-        opcode, length = HEAD.unpack_from(data, position)
+        opcode, length = unpack_at(HEAD, data, position)
         end = position + HEAD.size + length
         if opcode != Opcode.CHUNK or end > len(data):
             return False
@@ -169,7 +186,7 @@ class _Walker:
         else:
             lost.chunk = None if self.summary is not None else self.chunks_seen
             with contextlib.suppress(struct.error):
-                times = CHUNK.unpack_from(self.data, position + HEAD.size)
+                times = unpack_at(CHUNK, self.data, position + HEAD.size)
                 lost.start_ns, lost.end_ns = times[0], times[1]
             self.pending = lost
         self.out.lost.append(lost)
@@ -177,7 +194,7 @@ class _Walker:
     def _count_index(self, position: int, lost: Lost) -> None:
         data = self.data
         try:
-            opcode, length = HEAD.unpack_from(data, position)
+            opcode, length = unpack_at(HEAD, data, position)
             if opcode != Opcode.MESSAGE_INDEX:
                 return
             start = position + HEAD.size
@@ -201,29 +218,33 @@ class _Walker:
 
     # -- the data section -------------------------------------------------------------
 
-    def record(self, position: int, opcode: int, body: Body) -> None:
+    def record(self, position: int, opcode: int, body: Body) -> list[Message]:
+        """Read one record of the data section; returns the messages it holds."""
         out = self.out
         if add_definition(opcode, body, out.schemas, out.channels):
-            return
+            return []
         if opcode == Opcode.CHUNK:
             self.chunks_seen += 1
             self.pending = None
-            self.chunk(body)
-        elif opcode == Opcode.MESSAGE_INDEX:
+            return self.chunk(body)
+        if opcode == Opcode.MESSAGE_INDEX:
             if self.pending is not None:
                 self._add_index(body, self.pending)
         elif opcode == Opcode.MESSAGE:
             channel_id, sequence, log_time, _ = body.unpack(MESSAGE)
-            self.message(channel_id, sequence, log_time, bytes(body.take(body.end - body.pos)))
+            payload = bytes(body.take(body.end - body.pos))
+            channel = out.channels.get(channel_id)
+            if channel is None:
+                out.unknown_channel_messages += 1
+                return []
+            return [(channel[0], sequence, log_time, payload)]
         elif opcode == Opcode.METADATA:
             name = body.string()
             values = body.string_map()
             out.metadata.setdefault(name, values)
         elif opcode == Opcode.DATA_END:
             (expected,) = body.unpack(U32)
-            # On a view: a slice of the bytes would copy the whole data section.
-            section = memoryview(self.data)[:position]
-            if expected != 0 and expected != zlib.crc32(section) and not out.lost:
+            if expected != 0 and not out.lost and expected != crc32_between(self.data, 0, position):
                 out.lost.append(
                     Lost(
                         position,
@@ -231,15 +252,18 @@ class _Walker:
                         "(a metadata or index record is damaged)",
                     )
                 )
+        return []
 
-    def message(self, channel_id: int, sequence: int, log_time: int, payload: bytes) -> None:
-        channel = self.out.channels.get(channel_id)
-        if channel is None:
-            self.out.unknown_channel_messages += 1
-            return
-        self.on_message(channel[0], sequence, log_time, payload)
+    def known(self, messages: list[tuple[int, int, int, bytes]]) -> list[Message]:
+        """``messages`` (by channel id) on the topics of their channels; those whose
+        channel was never read are counted, not handed on."""
+        channels = self.out.channels
+        topics = {key: channel[0] for key, channel in channels.items()}
+        out = [(topics[m[0]], m[1], m[2], m[3]) for m in messages if m[0] in topics]
+        self.out.unknown_channel_messages += len(messages) - len(out)
+        return out
 
-    def chunk(self, body: Body) -> None:
+    def chunk(self, body: Body) -> list[Message]:
         _start, _end, records = chunk_records(body)
         # Parse the whole chunk before keeping any of it: a chunk is lost or kept whole.
         schemas: list[tuple[int, tuple[str, str]]] = []
@@ -269,10 +293,11 @@ class _Walker:
         self.out.schemas.update(schemas)
         for key, (topic, schema_id, encoding) in channels:
             self.out.channels[key] = (topic, schema_id, encoding)
-        for m in messages:
-            self.message(*m)
+        return self.known(messages)
 
-    def walk(self, position: int) -> None:
+    def walk(self, position: int) -> Iterator[list[Message]]:
+        """The data section from byte ``position`` on: the messages of each record
+        that holds any (a chunk's all at once), in file order."""
         data = self.data
         limit = self.summary.limit if self.summary is not None else len(data)
         while True:
@@ -281,7 +306,7 @@ class _Walker:
             if position + HEAD.size > len(data):
                 self.cut(position, f"file ends inside the record header at byte {position}")
                 return
-            opcode, length = HEAD.unpack_from(data, position)
+            opcode, length = unpack_at(HEAD, data, position)
             end = position + HEAD.size + length
             if opcode not in KNOWN_OPCODES and opcode < 0x80 or opcode == Opcode.HEADER:
                 problem = f"no record starts at byte {position} (opcode {opcode:#04x})"
@@ -293,7 +318,7 @@ class _Walker:
             else:
                 body = Body(data, position + HEAD.size, end)
                 try:
-                    self.record(position, opcode, body)
+                    messages = self.record(position, opcode, body)
                 except (BadRecord, struct.error) as exc:
                     problem = describe(exc)
                     self.lose(position, opcode, end, problem)
@@ -302,6 +327,8 @@ class _Walker:
                         return
                     position = next_at
                     continue
+                if messages:
+                    yield messages
                 if opcode in (Opcode.DATA_END, Opcode.FOOTER):
                     self.data_end_seen = True
                     return
@@ -331,7 +358,7 @@ class _Walker:
             return next_chunk
         data = self.data
         if end + HEAD.size <= len(data):
-            opcode, length = HEAD.unpack_from(data, end)
+            opcode, length = unpack_at(HEAD, data, end)
             known = opcode in KNOWN_OPCODES or opcode >= 0x80
             if known and end + HEAD.size + length <= len(data):
                 return end
@@ -340,25 +367,74 @@ class _Walker:
     def cut(self, position: int, where: str) -> None:
         self.out.truncated = where
 
+    def finish(self) -> None:
+        """Say how the file ends, if it stops short of its closing magic."""
+        data, out = self.data, self.out
+        if out.truncated or data[-len(MAGIC) :] == MAGIC:
+            return
+        missing = missing_magic(data)
+        if missing:
+            out.truncated = f"file ends {missing} byte(s) short of its closing magic"
+        elif self.data_end_seen:
+            out.truncated = f"file ends at byte {len(data)}, in its summary, after every message"
+        else:
+            out.truncated = f"file ends at byte {len(data)}, before the end of its data"
 
-def scan(data: bytes, on_message: MessageSink) -> tuple[Scan, str]:
+
+class Walk:
+    """A walk through an MCAP file that hands its messages out as it reads them.
+
+    Made, it has read the header and the summary, and raises
+    :class:`McapHeaderError` when the file is not MCAP or its header cannot be read.
+    Iterated (once), it gives every message as ``(topic, sequence, log_time_ns,
+    payload)`` in file order; :meth:`chunks` gives the same a record at a time (a
+    chunk's messages together), for a reader that takes them in bulk. :attr:`scan`
+    fills in as the walk goes (a metadata record is in it before the messages of
+    the chunks after it are handed out) and is complete, like :attr:`tail`, once
+    the walk is exhausted.
+
+    ``data`` is the file's ``bytes``, or a :class:`FileBytes` that reads it from
+    disk as it goes: then about one chunk of the file is held at a time.
+    """
+
+    def __init__(self, data: ByteSource) -> None:
+        self._walker = _Walker(data)
+        self._data_start = self._walker.header()
+        #: What is wrong with the summary, footer or closing magic ("" when nothing is).
+        self.tail = self._walker.read_summary(self._data_start)
+        self._started = False
+        #: Whether the walk has reached the end of the data it can read.
+        self.done = False
+
+    @property
+    def scan(self) -> Scan:
+        """What the walk has found so far (all it finds, once it is done)."""
+        return self._walker.out
+
+    def chunks(self) -> Iterator[list[Message]]:
+        """The messages of each record that holds any, in file order."""
+        if self._started:
+            raise RuntimeError("an MCAP walk can be read only once")
+        self._started = True
+        return self._chunks()
+
+    def _chunks(self) -> Iterator[list[Message]]:
+        yield from self._walker.walk(self._data_start)
+        self._walker.finish()
+        self.done = True
+
+    def __iter__(self) -> Iterator[Message]:
+        return itertools.chain.from_iterable(self.chunks())
+
+
+def scan(data: ByteSource, on_message: MessageSink) -> tuple[Scan, str]:
     """Walk ``data``, an MCAP file's bytes; ``on_message`` gets every message read.
 
     Returns what was found and what is wrong with the summary, footer or closing
     magic ("" when nothing is). Raises :class:`McapHeaderError` when the file is not
     MCAP or its header cannot be read.
     """
-    walker = _Walker(data, on_message)
-    data_start = walker.header()
-    tail = walker.read_summary(data_start)
-    walker.walk(data_start)
-    out = walker.out
-    if not out.truncated and not data.endswith(MAGIC):
-        missing = missing_magic(data)
-        if missing:
-            out.truncated = f"file ends {missing} byte(s) short of its closing magic"
-        elif walker.data_end_seen:
-            out.truncated = f"file ends at byte {len(data)}, in its summary, after every message"
-        else:
-            out.truncated = f"file ends at byte {len(data)}, before the end of its data"
-    return out, tail
+    walk = Walk(data)
+    for message in walk:
+        on_message(*message)
+    return walk.scan, walk.tail

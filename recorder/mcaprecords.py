@@ -10,6 +10,8 @@ import zlib
 
 from mcap.opcode import Opcode
 
+from pipemap.recorder.filebytes import ByteSource, unpack_at
+
 __all__ = [
     "CHUNK",
     "FOOTER",
@@ -55,14 +57,18 @@ class BadRecord(Exception):
 
 
 class Body:
-    """Strict reading of one record's body: running short is an error."""
+    """Strict reading of one record's body: running short is an error.
 
-    def __init__(self, data: bytes | memoryview, start: int = 0, end: int | None = None) -> None:
+    The body may lie in ``bytes`` (a chunk's records) or in a file read from disk as
+    it is asked for (a record of the data section): a field is read when it is
+    taken, so reading a chunk's header does not read its data."""
+
+    def __init__(self, data: ByteSource, start: int = 0, end: int | None = None) -> None:
         self.data = data
         self.pos = start
         self.end = len(data) if end is None else end
 
-    def take(self, n: int) -> bytes | memoryview:
+    def take(self, n: int) -> bytes:
         """The next ``n`` bytes."""
         if n < 0 or self.pos + n > self.end:
             raise BadRecord("a field runs past the end of its record")
@@ -74,7 +80,7 @@ class Body:
         """The next fields of layout ``fmt``."""
         if self.pos + fmt.size > self.end:
             raise BadRecord("a field runs past the end of its record")
-        value = fmt.unpack_from(self.data, self.pos)
+        value = unpack_at(fmt, self.data, self.pos)
         self.pos += fmt.size
         return value
 
@@ -156,7 +162,7 @@ def describe(exc: BaseException) -> str:
     return text if text else type(exc).__name__
 
 
-def _decompress(compression: str, data: bytes | memoryview, size: int) -> bytes:
+def _decompress(compression: str, data: bytes, size: int) -> bytes:
     if size > _MAX_CHUNK_BYTES:
         raise BadRecord(f"uncompressed size {size} bytes is not believable")
     if compression == "":
@@ -179,9 +185,12 @@ def chunk_records(body: Body) -> tuple[int, int, bytes]:
     """A chunk's time range and its records, uncompressed and checked."""
     start_ns, end_ns, size, crc = body.unpack(CHUNK)
     compression = body.string()
-    compressed = body.take(body.u64())
-    if body.pos != body.end:
+    length = body.u64()
+    # Checked before the data is read, so that a damaged length does not read a long
+    # stretch of the file only to refuse it; a length past the end is refused by take.
+    if body.pos + length < body.end:
         raise BadRecord("the chunk's data does not fill its record")
+    compressed = body.take(length)
     try:
         records = _decompress(compression, compressed, size)
     except BadRecord:

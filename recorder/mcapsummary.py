@@ -7,11 +7,11 @@ after damage, and the schemas and channels a lost chunk held."""
 from __future__ import annotations
 
 import struct
-import zlib
 from dataclasses import dataclass
 
 from mcap.opcode import Opcode
 
+from pipemap.recorder.filebytes import ByteSource, crc32_between, unpack_at
 from pipemap.recorder.mcaprecords import (
     FOOTER,
     FOOTER_RECORD,
@@ -54,27 +54,29 @@ class Summary:
     metadata_names: list[str]
 
 
-def read_header(data: bytes) -> tuple[int, str, str]:
+def read_header(data: ByteSource) -> tuple[int, str, str]:
     """Where the data section starts, and the header's profile and library.
 
     Raises :class:`McapHeaderError` when the file is not MCAP or its header cannot
     be read."""
-    if len(data) == 0:
+    size = len(data)
+    if size == 0:
         raise McapHeaderError("empty file, not an MCAP log")
-    if len(data) < len(MAGIC) and MAGIC.startswith(data):
+    opening = data[: len(MAGIC)]
+    if size < len(MAGIC) and MAGIC.startswith(opening):
         raise McapHeaderError("MCAP file cut short inside its magic, before its header")
-    if not data.startswith(MAGIC):
+    if opening != MAGIC:
         raise McapHeaderError("not an MCAP file")
     position = len(MAGIC)
-    if len(data) < position + HEAD.size:
+    if size < position + HEAD.size:
         raise McapHeaderError("MCAP file cut short before its header")
-    opcode, length = HEAD.unpack_from(data, position)
+    opcode, length = unpack_at(HEAD, data, position)
     if opcode != Opcode.HEADER:
         raise McapHeaderError(f"MCAP file whose first record is not a header (opcode {opcode})")
     end = position + HEAD.size + length
-    if end > len(data):
+    if end > size:
         raise McapHeaderError(
-            f"MCAP file cut short inside its header (header of {length} bytes, file of {len(data)})"
+            f"MCAP file cut short inside its header (header of {length} bytes, file of {size})"
         )
     body = Body(data, position + HEAD.size, end)
     try:
@@ -85,29 +87,35 @@ def read_header(data: bytes) -> tuple[int, str, str]:
     return int(end), profile, library
 
 
-def read_summary(data: bytes, data_start: int) -> tuple[Summary | None, str]:
+def read_summary(data: ByteSource, data_start: int) -> tuple[Summary | None, str]:
     """The footer and the summary, and what is wrong with them ("" if nothing, or if
     the file does not end in the magic: then it is cut short, and has no summary)."""
-    if len(data) < data_start + FOOTER_RECORD + len(MAGIC) or not data.endswith(MAGIC):
+    size = len(data)
+    if size < data_start + FOOTER_RECORD + len(MAGIC) or data[-len(MAGIC) :] != MAGIC:
         return None, ""
-    at = len(data) - len(MAGIC) - FOOTER_RECORD
-    opcode, length = HEAD.unpack_from(data, at)
+    at = size - len(MAGIC) - FOOTER_RECORD
+    footer = data[at : at + FOOTER_RECORD]
+    opcode, length = HEAD.unpack_from(footer, 0)
     if opcode != Opcode.FOOTER or length != FOOTER.size:
         return None, "no footer before the closing magic"
-    start, _offsets, crc = FOOTER.unpack_from(data, at + HEAD.size)
+    start, _offsets, crc = FOOTER.unpack_from(footer, HEAD.size)
     if start != 0 and not data_start <= start <= at:
         return None, f"the footer points its summary outside the file (byte {start})"
-    if crc != 0 and zlib.crc32(data[start or at : at + HEAD.size + 16]) != crc:
+    # The CRC is checked before the summary is read into memory: a damaged footer may
+    # point its summary at the start of a file of gigabytes.
+    first = start or at
+    if crc != 0 and crc32_between(data, first, at + HEAD.size + 16) != crc:
         return None, "summary CRC mismatch"
-    summary = Summary(start or at, [], {}, {}, [])
-    position = start if start else at
+    section = data[first : at + HEAD.size + 16]
+    summary = Summary(first, [], {}, {}, [])
+    position, records_end = 0, at - first
     try:
-        while position < at:
-            opcode, length = HEAD.unpack_from(data, position)
+        while position < records_end:
+            opcode, length = HEAD.unpack_from(section, position)
             end = position + HEAD.size + length
-            if end > at:
+            if end > records_end:
                 raise BadRecord("a summary record runs into the footer")
-            _add_summary_record(summary, opcode, Body(data, position + HEAD.size, end))
+            _add_summary_record(summary, opcode, Body(section, position + HEAD.size, end))
             position = end
     except (BadRecord, struct.error) as exc:
         return None, f"summary unreadable ({describe(exc)})"
@@ -133,16 +141,17 @@ def _add_summary_record(summary: Summary, opcode: int, body: Body) -> None:
         summary.metadata_names.append(body.string())
 
 
-def missing_magic(data: bytes) -> int:
+def missing_magic(data: ByteSource) -> int:
     """How many bytes of the closing magic are missing, if the file ends inside it
     right after a footer record; else 0."""
+    size = len(data)
     for missing in range(1, len(MAGIC) + 1):
         kept = len(MAGIC) - missing
-        at = len(data) - kept - FOOTER_RECORD
+        at = size - kept - FOOTER_RECORD
         if at < 0:
             break
-        if data[len(data) - kept :] == MAGIC[:kept] and data[at] == Opcode.FOOTER:
-            (length,) = U64.unpack_from(data, at + 1)
+        if data[size - kept :] == MAGIC[:kept] and data[at] == Opcode.FOOTER:
+            (length,) = unpack_at(U64, data, at + 1)
             if length == FOOTER.size:
                 return missing
     return 0

@@ -18,6 +18,10 @@ A log is then in one of three states:
 
 A file that is not MCAP, is empty, or is not a pipemap log raises
 :class:`pipemap.errors.LogFormatError`.
+
+:func:`read_log` holds every message it keeps; :func:`iter_log` hands them out one
+at a time as the file is read, holding about one chunk of it, for a log too long to
+hold. Both read the file the same way, a piece at a time, never whole.
 """
 
 from __future__ import annotations
@@ -25,13 +29,17 @@ from __future__ import annotations
 import contextlib
 import enum
 import gc
-from collections.abc import Callable, Iterator
+import itertools
+import weakref
+from collections import Counter
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple
+from types import TracebackType
+from typing import BinaryIO, NamedTuple
 
 from pipemap.errors import LogFormatError
-from pipemap.recorder.mcapfile import Lost, McapHeaderError, Scan, scan
+from pipemap.recorder.mcapfile import FileBytes, Lost, McapHeaderError, Message, Scan, Walk
 from pipemap.recorder.topics import METADATA_RUN, READABLE_VERSIONS, TOPICS
 
 __all__ = [
@@ -40,7 +48,9 @@ __all__ = [
     "LogChannel",
     "LogContents",
     "LogMessage",
+    "LogStream",
     "gc_paused",
+    "iter_log",
     "read_log",
 ]
 
@@ -156,76 +166,222 @@ def gc_paused() -> Iterator[None]:
 def read_log(path: Path | str, keep: Callable[[str], bool] | None = None) -> LogContents:
     """Read the log at ``path``; keep the messages of the topics ``keep`` accepts
     (default: all). Counts, times and metadata cover every topic."""
-    path = Path(path)
+    with gc_paused(), LogStream(path, keep) as stream:
+        messages = stream.contents.messages
+        for kept in stream._read(check_first=False):
+            messages.extend(kept)
+    return stream.contents
+
+
+def iter_log(path: Path | str, keep: Callable[[str], bool] | None = None) -> LogStream:
+    """The log at ``path`` read as a stream: its messages of the topics ``keep``
+    accepts (default: all), one at a time in file order, holding about one chunk of
+    the file at a time. See :class:`LogStream`."""
+    return LogStream(path, keep)
+
+
+class LogStream:
+    """A log read one message at a time, in file order, as the file is read from disk.
+
+    Iterate it (once) for the :class:`LogMessage` of the kept topics. A file that is
+    missing, not MCAP or cut short inside its header raises
+    :class:`~pipemap.errors.LogFormatError` as the stream is made, with the message
+    :func:`read_log` gives. One that is not a pipemap log, or of a format version
+    this pipemap does not read, raises it before the first message is handed out,
+    from the metadata and channels read so far (pipemap writes its run metadata
+    before the first chunk; a file whose run metadata comes only after its first
+    message, unnamed by a summary, is refused here where :func:`read_log` would
+    take it). A log whose run metadata the summary names but which is not read
+    before the first message (damaged, or further on), or a channel that turns out
+    wrong further on, is judged at the end, as :func:`read_log` judges it.
+
+    :attr:`contents` fills in as the file is read: the run metadata is in it before
+    the first message is handed out, where it comes before the file's first chunk,
+    as pipemap writes it. Once the stream is exhausted, counts, times, channels,
+    metadata and damage are those :func:`read_log` gives; its ``messages`` stay
+    empty. The file is closed when the stream is exhausted or :meth:`close` is
+    called (also as a context manager's exit), or when a loop over it is left early
+    and its iterator is let go.
+    """
+
+    def __init__(self, path: Path | str, keep: Callable[[str], bool] | None = None) -> None:
+        self.path = Path(path)
+        self._keep = keep if keep is not None else _keep_all
+        self._file = _open(self.path)
+        try:
+            self._data = FileBytes(self._file)
+            self._walk = Walk(self._data)
+        except McapHeaderError as exc:
+            self._file.close()
+            raise LogFormatError(f"{self.path}: {exc}") from None
+        except OSError as exc:
+            self._file.close()
+            raise _unreadable(self.path, exc) from None
+        except BaseException:
+            self._file.close()
+            raise
+        #: What the log holds, as far as it has been read.
+        self.contents = LogContents(library=self._walk.scan.library)
+        self._kept: dict[str, bool] = {}
+        # Weakly: the reading refers to this stream, and a loop left early must free
+        # it (and so close the file) without waiting for the cycle collector.
+        self._reading: weakref.ref[Generator[list[LogMessage], None, None]] | None = None
+        # The chunk's messages being handed out, emptied on close so that a loop over
+        # the stream stops at once, not at the end of the chunk already read.
+        self._handing: list[LogMessage] = []
+
+    def __iter__(self) -> Iterator[LogMessage]:
+        return itertools.chain.from_iterable(self._read(check_first=True))
+
+    def __enter__(self) -> LogStream:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether the file is closed: at the end of the log, or by :meth:`close`."""
+        return bool(self._file.closed)
+
+    def close(self) -> None:
+        """Stop reading and close the file (done on its own at the end of the log)."""
+        self._handing.clear()
+        reading = self._reading() if self._reading is not None else None
+        if reading is not None:
+            reading.close()
+        self._file.close()
+
+    def _read(self, check_first: bool) -> Iterator[list[LogMessage]]:
+        """The kept messages, a chunk at a time. ``check_first``: refuse a file that
+        is not a pipemap log before handing out its first message, not at its end."""
+        if self._reading is not None or self._file.closed:
+            raise RuntimeError(f"{self.path}: a log stream is read once, and not once closed")
+        reading = self._chunks(check_first)
+        self._reading = weakref.ref(reading)
+        return reading
+
+    def _chunks(self, check_first: bool) -> Generator[list[LogMessage], None, None]:
+        batches = self._walk.chunks()
+        try:
+            while True:
+                # The collector is paused while a chunk is read, as for a whole log in
+                # read_log, but not while the caller works on the messages handed out.
+                with gc_paused():
+                    try:
+                        batch = next(batches, None)
+                    except OSError as exc:
+                        raise _unreadable(self.path, exc) from None
+                    if batch is None:
+                        break
+                    kept = self._tally(batch)
+                self._sync_metadata()
+                if check_first:
+                    self._check_first()
+                    check_first = False
+                if kept:
+                    self._handing = kept
+                    yield kept
+            self._finish()
+        finally:
+            self._file.close()
+
+    def _tally(self, batch: list[Message]) -> list[LogMessage]:
+        """Count a chunk's messages by topic, widen the time range by theirs, and
+        return those kept. A chunk at a time: the work per message is done by
+        builtins, not by a call per message."""
+        c = self.contents
+        kept_of, any_kept = self._kept, False
+        for topic, count in Counter([m[0] for m in batch]).items():
+            c.counts[topic] = c.counts.get(topic, 0) + count
+            kept = kept_of.get(topic)
+            if kept is None:
+                kept = kept_of[topic] = self._keep(topic)
+            any_kept = any_kept or kept
+        times = [m[2] for m in batch]
+        low, high = min(times), max(times)
+        if c.first_time_ns is None or low < c.first_time_ns:
+            c.first_time_ns = low
+        if c.last_time_ns is None or high > c.last_time_ns:
+            c.last_time_ns = high
+        if not any_kept:
+            return []
+        return [LogMessage(t, ns, sequence, data) for t, sequence, ns, data in batch if kept_of[t]]
+
+    def _sync_metadata(self) -> None:
+        # A metadata record is read once and never changes: only new names are added.
+        found = self._walk.scan.metadata
+        if len(found) != len(self.contents.metadata):
+            self.contents.metadata.update(found)
+
+    def _check_first(self) -> None:
+        """Before the first message is handed out: refuse a file that is not a
+        pipemap log, or not of a version this pipemap reads, as :func:`read_log`
+        would at its end."""
+        found = self._walk.scan
+        run = self.contents.metadata.get(METADATA_RUN)
+        if run is None:
+            if METADATA_RUN in found.indexed_metadata:
+                return  # the summary names it: further on, or damaged; decided at the end
+            raise LogFormatError(_not_pipemap(self.path, found))
+        _check_version(run, self.path)
+        _check_channels(found, self.path)
+
+    def _finish(self) -> None:
+        """What the walk found, once it is over: channels, damage and integrity."""
+        walk, contents = self._walk, self.contents
+        result, tail = walk.scan, walk.tail
+        contents.library = result.library
+        contents.metadata.update(result.metadata)
+        for channel_id, (topic, schema_id, _encoding) in sorted(result.channels.items()):
+            schema = result.schemas.get(schema_id, ("", ""))[0]
+            contents.channels[channel_id] = LogChannel(channel_id, topic, schema)
+            contents.counts.setdefault(topic, 0)
+        contents.damage = [_damage(lost, result) for lost in result.lost]
+        if result.unknown_channel_messages:
+            contents.damage.append(
+                Damage(
+                    0,
+                    f"{result.unknown_channel_messages} message(s) on channels whose channel "
+                    "record was lost",
+                )
+            )
+        if tail:
+            contents.damage.append(Damage(len(self._data), f"{tail} (no message is lost)"))
+        contents.truncated = result.truncated
+        problems = [d.describe() for d in contents.damage]
+        if result.truncated:
+            problems.append(result.truncated)
+        contents.problem = "; ".join(problems)
+        if contents.damage:
+            contents.integrity = Integrity.CORRUPT
+        elif result.truncated:
+            contents.integrity = Integrity.TRUNCATED
+        _recognise(contents, result, self.path)
+
+
+def _keep_all(_topic: str) -> bool:
+    return True
+
+
+def _open(path: Path) -> BinaryIO:
     try:
-        data = path.read_bytes()
+        return path.open("rb", buffering=0)
     except FileNotFoundError:
         raise LogFormatError(f"{path}: no such file") from None
     except IsADirectoryError:
         raise LogFormatError(f"{path}: is a folder, not a log file") from None
     except OSError as exc:
-        raise LogFormatError(f"{path}: cannot read ({exc.strerror})") from None
-    with gc_paused():
-        return _read(data, path, keep if keep is not None else (lambda _topic: True))
+        raise _unreadable(path, exc) from None
 
 
-class _Collector:
-    """Counts every message by topic and keeps the ones asked for."""
-
-    def __init__(self, keep: Callable[[str], bool]) -> None:
-        self.keep = keep
-        self.contents = LogContents(library="")
-        self._kept: dict[str, bool] = {}
-
-    def __call__(self, topic: str, sequence: int, log_time: int, data: bytes) -> None:
-        c = self.contents
-        kept = self._kept.get(topic)
-        if kept is None:
-            kept = self._kept[topic] = self.keep(topic)
-        c.counts[topic] = c.counts.get(topic, 0) + 1
-        if c.first_time_ns is None or log_time < c.first_time_ns:
-            c.first_time_ns = log_time
-        if c.last_time_ns is None or log_time > c.last_time_ns:
-            c.last_time_ns = log_time
-        if kept:
-            c.messages.append(LogMessage(topic, log_time, sequence, data))
-
-
-def _read(data: bytes, path: Path, keep: Callable[[str], bool]) -> LogContents:
-    collector = _Collector(keep)
-    try:
-        result, tail = scan(data, collector)
-    except McapHeaderError as exc:
-        raise LogFormatError(f"{path}: {exc}") from None
-    contents = collector.contents
-    contents.library = result.library
-    contents.metadata = dict(result.metadata)
-    for channel_id, (topic, schema_id, _encoding) in sorted(result.channels.items()):
-        schema = result.schemas.get(schema_id, ("", ""))[0]
-        contents.channels[channel_id] = LogChannel(channel_id, topic, schema)
-        contents.counts.setdefault(topic, 0)
-    contents.damage = [_damage(lost, result) for lost in result.lost]
-    if result.unknown_channel_messages:
-        contents.damage.append(
-            Damage(
-                0,
-                f"{result.unknown_channel_messages} message(s) on channels whose channel "
-                "record was lost",
-            )
-        )
-    if tail:
-        contents.damage.append(Damage(len(data), f"{tail} (no message is lost)"))
-    contents.truncated = result.truncated
-    problems = [d.describe() for d in contents.damage]
-    if result.truncated:
-        problems.append(result.truncated)
-    contents.problem = "; ".join(problems)
-    if contents.damage:
-        contents.integrity = Integrity.CORRUPT
-    elif result.truncated:
-        contents.integrity = Integrity.TRUNCATED
-    _recognise(contents, result, path)
-    return contents
+def _unreadable(path: Path, exc: OSError) -> LogFormatError:
+    return LogFormatError(f"{path}: cannot read ({exc.strerror})")
 
 
 def _damage(lost: Lost, found: Scan) -> Damage:
@@ -246,7 +402,6 @@ def _damage(lost: Lost, found: Scan) -> Damage:
 
 def _recognise(contents: LogContents, found: Scan, path: Path) -> None:
     """Refuse a file that is not a pipemap log by its content (docs/log_format.md)."""
-    writer = f"written by {found.library}" if found.library else "written by an unnamed program"
     run = contents.metadata.get(METADATA_RUN)
     if run is None:
         if METADATA_RUN in found.indexed_metadata and contents.damage:
@@ -255,9 +410,17 @@ def _recognise(contents: LogContents, found: Scan, path: Path) -> None:
             raise LogFormatError(
                 f"{path}: cut short before its {METADATA_RUN} metadata ({contents.truncated})"
             )
-        raise LogFormatError(
-            f"{path}: not a pipemap log: no {METADATA_RUN} metadata (an MCAP file {writer})"
-        )
+        raise LogFormatError(_not_pipemap(path, found))
+    _check_version(run, path)
+    _check_channels(found, path)
+
+
+def _not_pipemap(path: Path, found: Scan) -> str:
+    writer = f"written by {found.library}" if found.library else "written by an unnamed program"
+    return f"{path}: not a pipemap log: no {METADATA_RUN} metadata (an MCAP file {writer})"
+
+
+def _check_version(run: dict[str, str], path: Path) -> None:
     version = run.get("format_version")
     if version not in READABLE_VERSIONS:
         got = "none" if version is None else repr(version)
@@ -266,6 +429,9 @@ def _recognise(contents: LogContents, found: Scan, path: Path) -> None:
             f"{path}: log format version {got} in {METADATA_RUN}; this pipemap reads "
             f"versions {readable}"
         )
+
+
+def _check_channels(found: Scan, path: Path) -> None:
     for channel_id, (topic, schema_id, encoding) in found.channels.items():
         expected = _TYPE_OF_TOPIC.get(topic)
         if expected is None:
