@@ -35,11 +35,14 @@ from pipemap.localizer import (
 )
 from pipemap.recorder import Integrity
 from pipemap.replay import (
+    REPLAY_TOPICS,
+    SCORE_TOPICS,
     FileSource,
     LoggedSweep,
     MessageSource,
     ReplayResult,
     ScoreReport,
+    StreamSource,
     sweeps_of,
 )
 from pipemap.replay import replay as _replay
@@ -115,11 +118,12 @@ def open_log(path: str | Path) -> Log:
     return Log(path, FileSource(path))
 
 
-def _source(log: Log | MessageSource | str | Path) -> MessageSource:
+def _source(log: Log | MessageSource | str | Path, topics: tuple[str, ...]) -> MessageSource:
+    """The log to replay: a path is read as the replay goes (its ``topics`` only)."""
     if isinstance(log, Log):
         return log.source
     if isinstance(log, str | Path):
-        return open_log(log).source
+        return StreamSource(log, topics)
     return log
 
 
@@ -135,14 +139,14 @@ def replay(
     :data:`pipemap.localizer.PAPER` is the paper's rule. ``progress`` is called with
     the visits decided so far and their total, ``None`` until the log has been read.
     """
-    return _replay(_source(log), config, progress)
+    return _replay(_source(log, REPLAY_TOPICS), config, progress)
 
 
 def score(
     log: Log | MessageSource | str | Path, config: LocalizerConfig | None = None
 ) -> ScoreReport:
     """Replay ``log`` and score its map against the log's ground truth (``/truth``)."""
-    return _score(_source(log), config)
+    return _score(_source(log, SCORE_TOPICS), config)
 
 
 def map_image_sets(

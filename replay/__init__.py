@@ -25,7 +25,14 @@ from pipemap.replay.score import (
     score_replay,
     true_sweeps,
 )
-from pipemap.replay.source import FileSource, MemorySource, MessageSource, PackedLog, ordered
+from pipemap.replay.source import (
+    FileSource,
+    MemorySource,
+    MessageSource,
+    PackedLog,
+    StreamSource,
+    ordered,
+)
 
 __all__ = [
     "REPLAY_TOPICS",
@@ -38,6 +45,7 @@ __all__ = [
     "PairStatistics",
     "ReplayResult",
     "ScoreReport",
+    "StreamSource",
     "VisitDecision",
     "VisitScore",
     "ordered",

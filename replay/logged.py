@@ -9,7 +9,7 @@ readable PNG is skipped with a warning, and the rest go on.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,14 +22,17 @@ from pipemap.localizer import ImageSet
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.messages import blocked_visit, decode_png
 from pipemap.recorder.schemas import CompressedImage, Log, NodeEvent, SweepCommand
+from pipemap.replay.source import ordered
 
 __all__ = [
+    "LogTimeWentBack",
     "LoggedExits",
     "LoggedSweep",
     "NodeEvents",
     "SweepAssembler",
     "SweepSets",
     "Sweeps",
+    "in_order",
     "node_events_of",
     "sweeps_of",
 ]
@@ -367,3 +370,25 @@ def _blocked_event(data: bytes) -> int | None:
     except DecodeError:
         return None
     return None if found is None else found[0]
+
+
+class LogTimeWentBack(Exception):
+    """A log read as it goes is not in the order of its log times (see :func:`in_order`)."""
+
+
+def in_order(messages: Iterable[LogMessage]) -> Iterator[LogMessage]:
+    """``messages``, read in a log time that never goes back (as pipemap writes a
+    log), in the total order of replay (:func:`replay.source.ordered`): each is held
+    until one of a later log time comes, and messages of one log time are put in
+    order together. Raises :class:`LogTimeWentBack` when a log time goes back (the
+    caller then reads the log whole and orders it)."""
+    held: list[LogMessage] = []
+    time_ns: int | None = None
+    for m in messages:
+        if time_ns is not None and m.log_time_ns < time_ns:
+            raise LogTimeWentBack(f"log time goes back at {m.log_time_ns} ns")
+        if m.log_time_ns != time_ns:
+            yield from ordered(held)
+            held, time_ns = [], m.log_time_ns
+        held.append(m)
+    yield from ordered(held)

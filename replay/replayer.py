@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,15 +37,17 @@ from pipemap.localizer import (
     TopoMap,
     map_document,
 )
-from pipemap.recorder import Integrity, LogMessage, Topic
+from pipemap.recorder import Integrity, Topic
 from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay.logged import (
     LoggedExits,
     LoggedSweep,
+    LogTimeWentBack,
     NodeEvents,
     SweepAssembler,
     Sweeps,
     SweepSets,
+    in_order,
     node_events_of,
     sweeps_of,
 )
@@ -170,23 +172,6 @@ class _WholeLogNeeded(Exception):
     """The log cannot be replayed visit by visit as it is read (see :func:`replay`)."""
 
 
-def _in_order(messages: Iterable[LogMessage]) -> Iterator[LogMessage]:
-    """``messages`` in the total order of replay (:func:`replay.source.ordered`), for
-    messages read in a log time that never goes back: each is held until one of a
-    later log time comes (messages of one log time are put in order together).
-    Raises :class:`_WholeLogNeeded` when a message's log time goes back."""
-    held: list[LogMessage] = []
-    time_ns: int | None = None
-    for m in messages:
-        if time_ns is not None and m.log_time_ns < time_ns:
-            raise _WholeLogNeeded(f"log time goes back at {m.log_time_ns} ns")
-        if m.log_time_ns != time_ns:
-            yield from ordered(held)
-            held, time_ns = [], m.log_time_ns
-        held.append(m)
-    yield from ordered(held)
-
-
 class _Replay:
     """One replay of a source, deciding each visit as soon as the log has told all of it.
 
@@ -224,7 +209,7 @@ class _Replay:
 
     def run(self) -> ReplayResult:
         stream = self.source.robot_stream()
-        for m in _in_order(stream) if not self.whole else iter(ordered(list(stream))):
+        for m in in_order(stream) if not self.whole else iter(ordered(list(stream))):
             named = self.events.feed(m)
             sweep = self.sweeps.feed(m)
             if self.sweeps.started is not None:
@@ -357,5 +342,5 @@ def replay(
     config = config if config is not None else LocalizerConfig()
     try:
         return _Replay(source, config, progress, keep_sets, whole=False).run()
-    except _WholeLogNeeded:
+    except (_WholeLogNeeded, LogTimeWentBack):
         return _Replay(source, config, progress, keep_sets, whole=True).run()

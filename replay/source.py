@@ -1,14 +1,17 @@
-"""Where a replay's messages come from: a log file, or a list in memory (tests).
+"""Where a replay's messages come from: a log file read as the replay goes, a log
+file read whole, or a list in memory (tests).
 
 A source gives the ``/robot`` messages in the total order ``(log time, topic,
-sequence)``, never in file order, plus the log's run metadata and integrity. The
-``/truth`` messages are read only for scoring, by :meth:`LogSource.truth`.
+sequence)`` (:meth:`MessageSource.robot_messages`), or one at a time as its file is
+read (:meth:`MessageSource.robot_stream`), plus the log's run metadata and
+integrity. The ``/truth`` messages are read only for scoring, by
+:meth:`MessageSource.truth`.
 """
 
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Collection, Iterable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
@@ -16,7 +19,16 @@ from typing import Protocol
 import numpy as np
 
 from pipemap.errors import LogFormatError
-from pipemap.recorder import METADATA_RUN, Integrity, LogContents, LogMessage, Topic, read_log
+from pipemap.recorder import (
+    METADATA_RUN,
+    Integrity,
+    LogContents,
+    LogMessage,
+    LogStream,
+    Topic,
+    iter_log,
+    read_log,
+)
 from pipemap.recorder.reader import gc_paused
 from pipemap.recorder.topics import ROBOT_PREFIX
 
@@ -26,6 +38,7 @@ __all__ = [
     "MessageSource",
     "PackedLog",
     "REQUIRED_TOPICS",
+    "StreamSource",
     "ordered",
 ]
 
@@ -111,33 +124,11 @@ class MemorySource:
         return max(times) - min(times) if times else 0
 
 
-class FileSource:
-    """A log file, read once; the truth is kept apart and handed out only on request.
+class _LogFile:
+    """What a source read from a file says of it (``_contents``: the log as read)."""
 
-    ``topics``, if given, are the only ``/robot`` and ``/truth`` topics kept: a replay
-    reads four of the log's topics, and the others (the IMU, wheels, ranges,
-    controller and true poses: nine messages in ten) need not be held. The counts,
-    times and integrity still cover the whole log."""
-
-    def __init__(self, path: Path | str, topics: Collection[str] | None = None) -> None:
-        self.path = Path(path)
-        prefixes = (ROBOT_PREFIX, "/truth/")
-        wanted = None if topics is None else frozenset(topics)
-        self._contents = read_log(
-            self.path,
-            keep=lambda topic: topic.startswith(prefixes) if wanted is None else topic in wanted,
-        )
-        topics = {c.topic for c in self._contents.channels.values()}
-        missing = [t for t in REQUIRED_TOPICS if t not in topics]
-        # A whole log without the camera is not one to replay; a log cut short or
-        # damaged before its camera channels simply holds no sweep (an empty map).
-        if missing and self._contents.integrity is Integrity.OK:
-            raise LogFormatError(f"{self.path}: no {', '.join(missing)} channel in this log")
-        # Grouped by topic in one pass (a view wants the topics apart, a replay the
-        # /robot ones together), and put in order once: a replay and a view both ask.
-        self._topics = _grouped(self._contents.messages)
-        self._robot: list[LogMessage] | None = None
-        self._truth: list[LogMessage] | None = None
+    path: Path
+    _contents: LogContents
 
     @property
     def name(self) -> str:
@@ -158,8 +149,32 @@ class FileSource:
 
     @property
     def contents(self) -> LogContents:
-        """The log as read: channels, counts, metadata, damage."""
+        """The log as read (so far, while a :class:`StreamSource` reads it): channels,
+        counts, metadata, damage; the messages a :class:`FileSource` keeps."""
         return self._contents
+
+    def run_metadata(self) -> dict[str, str]:
+        # Absent only where its record was damaged (the reader accepts that log).
+        return dict(self._contents.metadata.get(METADATA_RUN, {}))
+
+
+class FileSource(_LogFile):
+    """A log file, read once; the truth is kept apart and handed out only on request.
+
+    ``topics``, if given, are the only ``/robot`` and ``/truth`` topics kept: a replay
+    reads four of the log's topics, and the others (the IMU, wheels, ranges,
+    controller and true poses: nine messages in ten) need not be held. The counts,
+    times and integrity still cover the whole log."""
+
+    def __init__(self, path: Path | str, topics: Collection[str] | None = None) -> None:
+        self.path = Path(path)
+        self._contents = read_log(self.path, keep=_keeper(topics))
+        _check_camera(self.path, self._contents)
+        # Grouped by topic in one pass (a view wants the topics apart, a replay the
+        # /robot ones together), and put in order once: a replay and a view both ask.
+        self._topics = _grouped(self._contents.messages)
+        self._robot: list[LogMessage] | None = None
+        self._truth: list[LogMessage] | None = None
 
     def robot_messages(self) -> list[LogMessage]:
         if self._robot is None:
@@ -169,10 +184,6 @@ class FileSource:
     def robot_stream(self) -> Iterator[LogMessage]:
         return iter(self.robot_messages())
 
-    def run_metadata(self) -> dict[str, str]:
-        # Absent only where its record was damaged (the reader accepts that log).
-        return dict(self._contents.metadata.get(METADATA_RUN, {}))
-
     def truth(self) -> list[LogMessage]:
         if self._truth is None:
             self._truth = ordered(_joined(self.by_topic("/truth/")))
@@ -180,6 +191,73 @@ class FileSource:
 
     def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
         return {t: list(ms) for t, ms in self._topics.items() if t.startswith(prefix)}
+
+
+class StreamSource(_LogFile):
+    """A log file read as a replay goes: each message is handed out once and not
+    kept, so a replay of it (:func:`replay.replayer.replay`) holds the map and the
+    visit at hand, not the log. The ``/truth`` messages among ``topics`` are few
+    (one a sweep, and the network) and are kept for scoring.
+
+    The file is opened here: a missing, empty or foreign file is refused at once.
+    Its counts, times, damage and integrity are final once a pass has read it to its
+    end; its run metadata, which opens every pipemap log, is known from the first
+    message. Another pass (:meth:`robot_messages`, :meth:`by_topic`, or a replay
+    that must start again) reads the file again."""
+
+    def __init__(self, path: Path | str, topics: Collection[str] | None = None) -> None:
+        self.path = Path(path)
+        self._keep = _keeper(topics)
+        self._next: LogStream | None = iter_log(self.path, self._keep)
+        self._contents = self._next.contents
+        self._truth: list[LogMessage] | None = None
+        self._read = False  # whether a pass has read the whole file
+
+    def _pass(self) -> Iterator[LogMessage]:
+        """Every kept message, in file order, once; the truth is kept on the way."""
+        stream, self._next = self._next or iter_log(self.path, self._keep), None
+        self._contents = stream.contents
+        truth: list[LogMessage] = []
+        with stream:
+            for m in stream:
+                if m.topic.startswith("/truth/"):
+                    truth.append(m)
+                yield m
+        self._truth, self._read = truth, True
+        _check_camera(self.path, self._contents)
+
+    def robot_stream(self) -> Iterator[LogMessage]:
+        return (m for m in self._pass() if m.topic.startswith(ROBOT_PREFIX))
+
+    def robot_messages(self) -> list[LogMessage]:
+        return ordered(list(self.robot_stream()))
+
+    def truth(self) -> list[LogMessage]:
+        if self._truth is None:
+            for _ in self._pass():
+                pass
+        return ordered(self._truth or [])
+
+    def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
+        return _grouped(m for m in self._pass() if m.topic.startswith(prefix))
+
+
+def _keeper(topics: Collection[str] | None) -> Callable[[str], bool]:
+    """Which topics a file source keeps: ``topics``, or every ``/robot`` and
+    ``/truth`` one."""
+    if topics is None:
+        return lambda topic: topic.startswith((ROBOT_PREFIX, "/truth/"))
+    wanted = frozenset(topics)
+    return lambda topic: topic in wanted
+
+
+def _check_camera(path: Path, contents: LogContents) -> None:
+    """Refuse a whole log without the camera's channels; a log cut short or damaged
+    before them simply holds no sweep (an empty map)."""
+    topics = {c.topic for c in contents.channels.values()}
+    missing = [t for t in REQUIRED_TOPICS if t not in topics]
+    if missing and contents.integrity is Integrity.OK:
+        raise LogFormatError(f"{path}: no {', '.join(missing)} channel in this log")
 
 
 @dataclass(frozen=True)

@@ -69,11 +69,11 @@ def _cpu_s() -> float:
 
 def _score(path: Path, point: RunPoint) -> dict[str, Any]:
     """``pipemap score RULE_FLAGS path --threshold T``: its calls, its outputs."""
-    from pipemap.replay import SCORE_TOPICS, FileSource, replay, score_replay
+    from pipemap.replay import SCORE_TOPICS, StreamSource, replay, score_replay
 
     config = RULES[point.rule].config(point.threshold)
     started = time.perf_counter()
-    source = FileSource(path, SCORE_TOPICS)
+    source = StreamSource(path, SCORE_TOPICS)
     result = replay(source, config)
     report = score_replay(result, source, config.threshold, config.fast)
     known_errors = [

@@ -9,12 +9,11 @@ where it was cut or damaged, and says which.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from types import FrameType
 from typing import Any, TextIO
@@ -171,44 +170,71 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     return 0 if result.ok else 1
 
 
-def _undecodable(messages: list[Any]) -> dict[str, int]:
-    """Messages per topic that do not decode as their topic's message type."""
-    from google.protobuf.message import DecodeError
+class _Census:
+    """What ``pipemap info`` counts, one message at a time, as the log is read: the
+    messages that do not decode as their topic's type, the node arrivals, and the
+    camera's messages for the sweeps."""
 
-    from pipemap.recorder import TOPICS
+    def __init__(self) -> None:
+        from pipemap.recorder import TOPICS
 
-    classes = dict(TOPICS)
-    bad: dict[str, int] = {}
-    for m in messages:
-        message_class = classes.get(m.topic)
-        if message_class is None:
-            continue
+        self.classes = dict(TOPICS)
+        self.undecodable: dict[str, int] = {}
+        self.visits = 0
+
+    def camera(self, messages: Iterable[Any]) -> Iterator[Any]:
+        """The camera's messages of ``messages``, the others counted on the way."""
+        from google.protobuf.message import DecodeError
+
+        from pipemap.recorder import Topic
+        from pipemap.recorder.schemas import NodeEvent
+
+        for m in messages:
+            message_class = self.classes.get(m.topic)
+            if message_class is not None:
+                try:
+                    decoded = message_class.FromString(m.data)
+                except DecodeError:
+                    self.undecodable[m.topic] = self.undecodable.get(m.topic, 0) + 1
+                else:
+                    if m.topic == Topic.NODE:
+                        self.visits += decoded.kind == NodeEvent.ARRIVAL
+            if m.topic in (Topic.SWEEP, Topic.IMAGE):
+                yield m  # undecodable too: the sweeps' own count says what it cost
+
+
+def _read(path: Path) -> tuple[Any, _Census, int, list[str]]:
+    """The log read as it goes: what it holds (no message kept), its census, how many
+    complete sweeps it has (those a replay keeps, with every image readable) and
+    the lines on those skipped. A log whose log time goes back is read again, its
+    camera's messages held and ordered."""
+    from pipemap.recorder import iter_log
+    from pipemap.replay import ordered
+    from pipemap.replay.logged import LogTimeWentBack, SweepAssembler, in_order
+
+    with iter_log(path) as stream:
+        census, sweeps, count = _Census(), SweepAssembler(str(path)), 0
         try:
-            message_class.FromString(m.data)
-        except DecodeError:
-            bad[m.topic] = bad.get(m.topic, 0) + 1
-    return bad
+            for m in in_order(census.camera(stream)):
+                count += sweeps.feed(m) is not None
+        except LogTimeWentBack:
+            stream.close()
+            with iter_log(path) as again:
+                census, sweeps, count = _Census(), SweepAssembler(str(path)), 0
+                for m in ordered(list(census.camera(again))):
+                    count += sweeps.feed(m) is not None
+                stream = again
+    sweeps.finish()
+    return stream.contents, census, count, sweeps.warnings
 
 
 def info_document(path: Path) -> dict[str, Any]:
     """What ``pipemap info --json`` prints."""
-    from google.protobuf.message import DecodeError
-
-    from pipemap.recorder import METADATA_RESULT, METADATA_RUN, Topic, read_log
+    from pipemap.recorder import METADATA_RESULT, METADATA_RUN
     from pipemap.recorder.metadata import typed_metadata
-    from pipemap.recorder.schemas import NodeEvent
-    from pipemap.replay import ordered, sweeps_of
 
-    contents = read_log(path)
-    undecodable = _undecodable(contents.messages)
-    camera = [m for m in contents.messages if m.topic in (Topic.SWEEP, Topic.IMAGE)]
-    # The sweeps a replay would use: complete, with every image readable.
-    found = sweeps_of(ordered(camera), str(path))
-    visits = 0
-    for m in contents.messages:
-        if m.topic == Topic.NODE:
-            with contextlib.suppress(DecodeError):  # counted as undecodable above
-                visits += NodeEvent.FromString(m.data).kind == NodeEvent.ARRIVAL
+    contents, census, sweep_count, skipped = _read(path)
+    undecodable, visits = census.undecodable, census.visits
     integrity, problem = contents.integrity.value, contents.problem
     if undecodable:
         lines = ", ".join(f"{topic} {count}" for topic, count in sorted(undecodable.items()))
@@ -244,8 +270,8 @@ def info_document(path: Path) -> dict[str, Any]:
             {"topic": c.topic, "schema": c.schema_name, "count": contents.counts.get(c.topic, 0)}
             for c in sorted(contents.channels.values(), key=lambda c: c.channel_id)
         ],
-        "sweeps": len(found.sweeps),
-        "sweeps_skipped": found.warnings,
+        "sweeps": sweep_count,
+        "sweeps_skipped": skipped,
         "visits": visits,
         "metadata": metadata,
     }

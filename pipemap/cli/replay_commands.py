@@ -56,19 +56,25 @@ def open_source(
     args: argparse.Namespace, err: TextIO, topics: Collection[str] | None = None
 ) -> Any:
     """The log ``args.log`` as a replay source holding ``topics`` (default: every
-    ``/robot`` and ``/truth`` topic); warns on ``err`` when it is cut or damaged."""
-    from pipemap.recorder import Integrity
+    ``/robot`` and ``/truth`` topic), read whole; warns on ``err`` when it is cut or
+    damaged."""
     from pipemap.replay import FileSource
 
     source = FileSource(Path(args.log), topics)
-    contents = source.contents
-    for damage in contents.damage:
-        err.write(f"pipemap: warning: {args.log}: damaged {damage.describe()}\n")
-    if contents.truncated:
-        err.write(f"pipemap: warning: {args.log} is cut short: {contents.truncated}\n")
-    if source.integrity is not Integrity.OK:
-        err.write(f"pipemap: warning: {args.log}: replaying every sweep its intact parts hold\n")
+    report_damage(args.log, source.contents, err)
     return source
+
+
+def report_damage(log: str, contents: Any, err: TextIO) -> None:
+    """Warn on ``err`` when the log ``contents`` says was read is cut or damaged."""
+    from pipemap.recorder import Integrity
+
+    for damage in contents.damage:
+        err.write(f"pipemap: warning: {log}: damaged {damage.describe()}\n")
+    if contents.truncated:
+        err.write(f"pipemap: warning: {log} is cut short: {contents.truncated}\n")
+    if contents.integrity is not Integrity.OK:
+        err.write(f"pipemap: warning: {log}: the sweeps its intact parts hold are replayed\n")
 
 
 def progress_printer(err: TextIO) -> Any:
@@ -90,13 +96,15 @@ def progress_printer(err: TextIO) -> Any:
 def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log and write its map document."""
     from pipemap.localizer import dumps_document
-    from pipemap.replay import REPLAY_TOPICS, replay
+    from pipemap.replay import REPLAY_TOPICS, StreamSource, replay
 
     target = output_file(args.output, "-o", args.force)
     graphml = output_file(args.graphml, "--graphml", args.force)
     config = localizer_config(args)
-    source = open_source(args, err, REPLAY_TOPICS)
+    # Read as the replay goes: it holds the map, not the log.
+    source = StreamSource(Path(args.log), REPLAY_TOPICS)
     result = replay(source, config, progress_printer(err), keep_sets=False)
+    report_damage(args.log, source.contents, err)
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
     text = dumps_document(result.document())
@@ -120,15 +128,16 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 
 def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log, compare with its truth, print (and save) the score."""
-    from pipemap.replay import SCORE_TOPICS, replay, score_replay
+    from pipemap.replay import SCORE_TOPICS, StreamSource, replay, score_replay
 
     folder = None
     if args.save_results is not None:
         folder = output_folder(args.save_results, "--save-results", args.force)
     config = localizer_config(args)
-    source = open_source(args, err, SCORE_TOPICS)
+    source = StreamSource(Path(args.log), SCORE_TOPICS)
     result = replay(source, config, progress_printer(err))
     report = score_replay(result, source, config.threshold, config.fast)
+    report_damage(args.log, source.contents, err)
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
     if folder is not None:

@@ -12,7 +12,14 @@ import pytest
 from pipemap.cli.app import main
 from pipemap.localizer import LocalizerConfig, dumps_document
 from pipemap.recorder import Topic
-from pipemap.replay import REPLAY_TOPICS, SCORE_TOPICS, FileSource, replay, score_replay
+from pipemap.replay import (
+    REPLAY_TOPICS,
+    SCORE_TOPICS,
+    FileSource,
+    StreamSource,
+    replay,
+    score_replay,
+)
 
 LOG = Path(__file__).resolve().parents[2] / "recordings" / "random8_loops.mcap"
 
@@ -48,11 +55,12 @@ def test_replay_and_score_read_only_their_topics(
 ) -> None:
     opened: list[Any] = []
 
-    class Recording(FileSource):
+    class Recording(StreamSource):
         def __init__(self, path: Path | str, topics: Any = None) -> None:
             opened.append(topics)
             super().__init__(path, topics)
 
-    monkeypatch.setattr("pipemap.replay.FileSource", Recording)
+    # Both read the file as they go (a StreamSource), and only their topics.
+    monkeypatch.setattr("pipemap.replay.StreamSource", Recording)
     assert main([command, str(LOG)]) == 0
     assert opened == [topics]

@@ -12,12 +12,23 @@ from pathlib import Path
 
 import pytest
 
+from pipemap.cli.log_commands import info_document
 from pipemap.cli.replay_commands import progress_printer
+from pipemap.errors import LogFormatError
 from pipemap.localizer import LocalizerConfig, dumps_document
 from pipemap.localizer import localizer as localizer_module
-from pipemap.recorder import LogMessage, Topic
+from pipemap.recorder import METADATA_RESULT, METADATA_RUN, LogMessage, LogWriter, Topic, read_log
 from pipemap.recorder.schemas import NodeEvent, SweepCommand
-from pipemap.replay import FileSource, MemorySource, ReplayResult, replay
+from pipemap.replay import (
+    REPLAY_TOPICS,
+    SCORE_TOPICS,
+    FileSource,
+    MemorySource,
+    ReplayResult,
+    StreamSource,
+    replay,
+    score_replay,
+)
 from pipemap.replay import replayer as replayer_module
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
@@ -229,3 +240,76 @@ def test_the_progress_line_shows_the_total_when_known() -> None:
     show(1, None)
     show(2, 2)
     assert err.getvalue() == "\rreplaying: 1 visits \rreplaying: 2/2 visits \n"
+
+
+def test_a_file_read_as_it_goes_is_decided_on_long_before_its_end(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    source = StreamSource(AUTONOMOUS, REPLAY_TOPICS)
+    read_at: list[int] = []
+    real = localizer_module.Localizer.localize
+
+    def localize(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        read_at.append(sum(source.contents.counts.values()))
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(localizer_module.Localizer, "localize", localize)
+    result = replay(source, keep_sets=False)
+    total = sum(source.contents.counts.values())
+    assert total == sum(FileSource(AUTONOMOUS).contents.counts.values())
+    # The first visit is decided with a fifth of the file read, and every visit but
+    # the last before the end: the source keeps no message, so nothing holds the log.
+    assert read_at[0] < total / 5 and read_at[-2] < total
+    monkeypatch.setattr(localizer_module.Localizer, "localize", real)
+    _same(result, replay(FileSource(AUTONOMOUS, REPLAY_TOPICS), keep_sets=False))
+
+
+@pytest.mark.parametrize("path", sorted(RECORDINGS.glob("*.mcap")), ids=lambda p: p.stem)
+def test_a_file_read_as_it_goes_scores_as_a_file_read_whole(path: Path) -> None:
+    streamed, whole = StreamSource(path, SCORE_TOPICS), FileSource(path, SCORE_TOPICS)
+    a, b = replay(streamed), replay(whole)
+    _same(a, b)
+    assert streamed.integrity is whole.integrity and streamed.duration_ns == whole.duration_ns
+    threshold = LocalizerConfig().threshold
+    scored = score_replay(a, streamed, threshold).json_text(with_latency=False)
+    assert scored == score_replay(b, whole, threshold).json_text(with_latency=False)
+
+
+def test_a_file_read_as_it_goes_is_refused_before_any_work(tmp_path: Path) -> None:
+    with pytest.raises(LogFormatError, match="no such file"):
+        StreamSource(tmp_path / "missing.mcap")
+    (tmp_path / "empty.mcap").write_bytes(b"")
+    with pytest.raises(LogFormatError, match="empty.mcap"):
+        StreamSource(tmp_path / "empty.mcap")
+
+
+@pytest.fixture(scope="module")
+def out_of_order(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``paper_autonomous`` written again with its last camera message first: its log
+    time goes back as the file is read (MCAP allows any order)."""
+    contents = read_log(AUTONOMOUS)
+    camera = [i for i, m in enumerate(contents.messages) if m.topic == Topic.SWEEP]
+    last = contents.messages[camera[-1]]
+    rest = [m for i, m in enumerate(contents.messages) if i != camera[-1]]
+    path = tmp_path_factory.mktemp("order") / "out_of_order.mcap"
+    with path.open("wb") as f, LogWriter(f, contents.metadata[METADATA_RUN]) as writer:
+        for m in [last, *rest]:
+            writer.write_serialized(m.topic, m.log_time_ns, m.data)
+        writer.finish(contents.metadata[METADATA_RESULT])
+    return path
+
+
+def test_a_file_whose_log_time_goes_back_replays_to_the_same_map(
+    out_of_order: Path, runs: list[bool]
+) -> None:
+    result = replay(StreamSource(out_of_order, REPLAY_TOPICS), keep_sets=False)
+    assert runs == [False, True]
+    plain = replay(StreamSource(AUTONOMOUS, REPLAY_TOPICS), keep_sets=False)
+    assert dumps_document(result.document()) == dumps_document(plain.document())
+
+
+def test_info_counts_the_sweeps_of_a_file_whose_log_time_goes_back(out_of_order: Path) -> None:
+    mixed, plain = info_document(out_of_order), info_document(AUTONOMOUS)
+    assert mixed["sweeps"] == plain["sweeps"] == 13
+    assert mixed["messages"] == plain["messages"] and mixed["visits"] == plain["visits"]
+    assert mixed["integrity"] == "ok"
