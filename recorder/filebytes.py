@@ -11,6 +11,7 @@ real ``bytes`` (a chunk's records once decompressed, or a whole file in a test):
 
 from __future__ import annotations
 
+import errno
 import operator
 import os
 import struct
@@ -133,18 +134,23 @@ class FileBytes:
     def _read(self, offset: int, size: int) -> bytes:
         fd = self._file.fileno()
         data = os.pread(fd, size, offset)
-        if len(data) == size or not data:
-            return data
-        # A read may return less than asked (a signal, a very large read): go on.
-        parts = [data]
-        got = len(data)
-        while got < size:
-            more = os.pread(fd, size - got, offset + got)
-            if not more:
-                break  # the file has shrunk since it was opened
-            parts.append(more)
-            got += len(more)
-        return b"".join(parts)
+        if len(data) < size:
+            # A read may return less than asked (a signal, a very large read): go on.
+            parts = [data]
+            got = len(data)
+            while got < size:
+                more = os.pread(fd, size - got, offset + got)
+                if not more:
+                    break
+                parts.append(more)
+                got += len(more)
+            data = b"".join(parts)
+        if len(data) < min(size, self._size - offset):
+            # Bytes the file had when it was opened are gone: another program cut it
+            # (a recorder started again over it, say). What was read may not be what
+            # the rest of the file says, so the reading stops here.
+            raise OSError(errno.EIO, "the file was cut shorter while it was being read")
+        return data
 
 
 def unpack_at(layout: struct.Struct, data: ByteSource, position: int) -> tuple[Any, ...]:

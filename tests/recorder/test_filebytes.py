@@ -83,3 +83,18 @@ def test_a_closed_file_is_not_read(content: tuple[Path, bytes]) -> None:
         view = FileBytes(f)
     with pytest.raises(ValueError):
         view[100_000:100_010]
+
+
+def test_bytes_gone_since_the_file_was_opened_stop_the_reading(tmp_path: Path) -> None:
+    """Another program cuts the file while it is read: what is left may not be what
+    the rest of the file says, so a read of bytes it had is refused, not cut short."""
+    path = tmp_path / "cut.bin"
+    path.write_bytes(bytes(range(256)) * 1000)
+    with path.open("rb") as f:
+        view = FileBytes(f)
+        assert view[100:200] == bytes(range(100, 200))
+        path.write_bytes(b"")  # truncated in place, as another program would
+        with pytest.raises(OSError, match="cut shorter while it was being read"):
+            view[150_000:150_100]
+        with pytest.raises(OSError, match="cut shorter"):
+            crc32_between(view, 0, len(view))

@@ -6,12 +6,15 @@ from __future__ import annotations
 
 import gc
 import io
+import os
+import shutil
 import weakref
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from pipemap.cli.app import main
 from pipemap.cli.log_commands import info_document
 from pipemap.cli.replay_commands import progress_printer
 from pipemap.errors import LogFormatError
@@ -313,3 +316,35 @@ def test_info_counts_the_sweeps_of_a_file_whose_log_time_goes_back(out_of_order:
     assert mixed["sweeps"] == plain["sweeps"] == 13
     assert mixed["messages"] == plain["messages"] and mixed["visits"] == plain["visits"]
     assert mixed["integrity"] == "ok"
+
+
+def _cut_while_read(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every StreamSource of ``path`` cuts the file to a third as it hands out its
+    100th robot message (another program truncating it while it is read)."""
+    real = StreamSource.robot_stream
+
+    def robot_stream(self: StreamSource) -> Iterator[LogMessage]:
+        for i, m in enumerate(real(self)):
+            if i == 100 and self.path == path:
+                os.truncate(path, path.stat().st_size // 3)
+            yield m
+
+    monkeypatch.setattr(StreamSource, "robot_stream", robot_stream)
+
+
+def test_a_file_cut_while_it_is_replayed_is_refused_in_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "cut.mcap"
+    shutil.copyfile(AUTONOMOUS, path)
+    _cut_while_read(path, monkeypatch)
+    with pytest.raises(LogFormatError, match="cut shorter while it was being read"):
+        replay(StreamSource(path, REPLAY_TOPICS))
+    target = tmp_path / "map.json"
+    for command in (["replay", str(path), "-o", str(target)], ["score", str(path), "--json"]):
+        shutil.copyfile(AUTONOMOUS, path)
+        capsys.readouterr()
+        assert main(command) == 2
+        out, err = capsys.readouterr()
+        assert err.count("\n") == 1 and "cut shorter while it was being read" in err
+        assert "Traceback" not in err and out == "" and not target.exists()
