@@ -11,9 +11,11 @@ import shutil
 import weakref
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
+from pipemap import recorder
 from pipemap.cli.app import main
 from pipemap.cli.log_commands import info_document
 from pipemap.cli.replay_commands import progress_printer
@@ -348,3 +350,40 @@ def test_a_file_cut_while_it_is_replayed_is_refused_in_one_line(
         out, err = capsys.readouterr()
         assert err.count("\n") == 1 and "cut shorter while it was being read" in err
         assert "Traceback" not in err and out == "" and not target.exists()
+
+
+def test_info_on_a_file_cut_while_it_is_read_is_refused_in_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "cut.mcap"
+    shutil.copyfile(AUTONOMOUS, path)
+    real = recorder.iter_log
+
+    def iter_log(*args: Any, **kwargs: Any) -> Iterator[LogMessage]:
+        stream = real(*args, **kwargs)
+
+        class Cutting:  # the stream, the file cut as its 1000th message is handed out
+            contents = stream.contents
+
+            def __enter__(self) -> Cutting:
+                return self
+
+            def __exit__(self, *exc: object) -> None:
+                stream.close()
+
+            def close(self) -> None:
+                stream.close()
+
+            def __iter__(self) -> Iterator[LogMessage]:
+                for i, m in enumerate(stream):
+                    if i == 1000:
+                        os.truncate(path, path.stat().st_size // 3)
+                    yield m
+
+        return Cutting()  # type: ignore[return-value]
+
+    monkeypatch.setattr(recorder, "iter_log", iter_log)
+    assert main(["info", str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and "cut shorter while it was being read" in err
+    assert "Traceback" not in err and out == ""
