@@ -289,25 +289,27 @@ GARBAGE = [
 ]
 
 
-def _refused_alike(path: Path) -> None:
-    """``iter_log`` refuses ``path`` as it is made, with ``read_log``'s very line."""
+def _refusals(path: Path) -> tuple[str, str]:
+    """The lines ``read_log`` and ``iter_log`` (as the stream is made) refuse ``path`` with."""
     with pytest.raises(LogFormatError) as by_read:
         read_log(path)
     with pytest.raises(LogFormatError) as by_stream:
         iter_log(path)
-    assert str(by_stream.value) == str(by_read.value)
+    return str(by_read.value), str(by_stream.value)
 
 
 @pytest.mark.parametrize("content", GARBAGE, ids=["empty", "text", "magic", "cut-magic", "header"])
 def test_garbage_is_refused_as_the_stream_is_made(tmp_path: Path, content: bytes) -> None:
     path = tmp_path / "bad.mcap"
     path.write_bytes(content)
-    _refused_alike(path)
+    by_read, by_stream = _refusals(path)
+    assert by_stream == by_read and str(path) in by_stream
 
 
 def test_a_missing_file_and_a_folder_are_refused_as_the_stream_is_made(tmp_path: Path) -> None:
-    _refused_alike(tmp_path / "nothing.mcap")
-    _refused_alike(tmp_path)
+    for path in (tmp_path / "nothing.mcap", tmp_path):
+        by_read, by_stream = _refusals(path)
+        assert by_stream == by_read and str(path) in by_stream
 
 
 def _foreign(path: Path) -> None:
