@@ -91,7 +91,8 @@ def _staged_matches(
     stage's gate (see :attr:`TwoViewConfig.gate_every`)."""
     stages = max(1, config.gate_every)
     gate = config.gate_share * config.min_inliers / stages
-    if stages == 1 or int(gate) < 2:
+    # A first gate below 3 stops nothing: any two matches fit some motion.
+    if stages == 1 or int(gate) < 3:
         return _Staged(_matches(query, known, ratio, overlap, cache=cache))
     part = np.arange(len(known)) % stages
     found: list[tuple[np.ndarray, np.ndarray]] = []

@@ -140,14 +140,24 @@ def test_the_gate_stops_a_different_junction_after_a_quarter(
         assert sum(seen) == len(features[k])
 
 
-def test_no_gate_below_two(seen: list[int], features: dict[str, twoview.SweepFeatures]) -> None:
-    """The plain fit's 12 inliers would make a gate of 1.5: one stage then, so a weak
-    fit (the rotation of a revisit without the check) is never cut short."""
+def test_no_gate_below_three(seen: list[int], features: dict[str, twoview.SweepFeatures]) -> None:
+    """The plain fit's 12 inliers would make a first gate of 2 (0.7 x 12 / 4): one
+    stage then, so a weak fit (the rotation of a revisit without the check) is never
+    cut short. Any two matches fit some motion: such a gate would stop nothing."""
     fit_two_view(features["1"], features["4"], TwoViewConfig(), None)
     assert seen == [len(features["4"])]
 
 
-@pytest.mark.parametrize(("counts", "stages_run"), [([5], 1), ([7, 11], 2), ([7, 13, 17], 3)])
+def test_a_first_gate_of_three_is_kept(
+    seen: list[int], features: dict[str, twoview.SweepFeatures]
+) -> None:
+    """20 inliers make a first gate of 3 (0.7 x 20 / 4): the first stage matches a
+    quarter of the known keypoints."""
+    fit_two_view(features["1"], features["4"], TwoViewConfig(min_inliers=20), None)
+    assert seen[0] == len(range(0, len(features["4"]), 4))
+
+
+@pytest.mark.parametrize(("counts", "stages_run"), [([7], 1), ([8, 15], 2), ([8, 16, 24], 3)])
 def test_each_stage_asks_for_its_share(
     monkeypatch: pytest.MonkeyPatch,
     seen: list[int],
@@ -155,9 +165,10 @@ def test_each_stage_asks_for_its_share(
     counts: list[int],
     stages_run: int,
 ) -> None:
-    """After stage s of 4 the matches so far must reach half of s quarters of the
-    48 inliers on the coarse grid (6, 12, 18): the fit stops at the first stage
-    whose count falls short."""
+    """After stage s of 4 the matches so far must reach 0.7 of s quarters of the
+    48 inliers on the coarse grid (8, 16, 25): the fit stops at the first stage
+    whose count falls short. Each count is one short of its gate (and passes the
+    gate of the old share, 0.5: 6, 12, 18)."""
     given = iter(counts)
 
     def coarse(*args: object) -> tuple[np.ndarray, np.ndarray, list[float]]:
@@ -173,7 +184,7 @@ def test_a_count_past_every_gate_is_not_counted_again(
     monkeypatch: pytest.MonkeyPatch, features: dict[str, twoview.SweepFeatures]
 ) -> None:
     """A count never falls as matches are added: when the first quarter already
-    passes the last gate (18 of 48), the later gates cost no grid, only the fit."""
+    passes the last gate (25 of 48), the later gates cost no grid, only the fit."""
     calls: list[int] = []
     real = stages._coarse
 
