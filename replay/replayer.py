@@ -74,8 +74,13 @@ __all__ = [
 #: may hold these alone (:class:`replay.source.FileSource`'s ``topics``).
 REPLAY_TOPICS = (Topic.SWEEP, Topic.IMAGE, Topic.NODE, Topic.EVENTS)
 
-#: A probe in the log answers a request for the same kind and move, to this much.
+#: A probe in the log answers a request for the same kind and move: its steps to
+#: this much, its turn to ``_PROBE_TURN_MATCH_RAD``. The turn is the NCC's estimate of
+#: the rotation, so any change to the arithmetic (another localizer version, another
+#: FFT) moves it in the last digits; the camera cannot tell such turns apart: 1e-3
+#: rad is under a third of a pixel at 400 px (80 degrees over 400 columns).
 _PROBE_MATCH = 1e-9
+_PROBE_TURN_MATCH_RAD = 1e-3
 
 
 @dataclass(frozen=True)
@@ -140,13 +145,15 @@ class _LoggedProbes:
         self.not_in_log = 0
 
     def probe(self, request: ProbeRequest) -> ImageSet | None:
-        wanted = (request.yaw_rad, request.forward_m, request.left_m)
         for probe, images in self.probes:
             assert probe is not None
-            kind, *move = probe
-            if kind == request.kind.value and all(
-                math.isclose(a, b, rel_tol=0.0, abs_tol=_PROBE_MATCH)
-                for a, b in zip(move, wanted, strict=True)
+            kind, yaw, forward, left = probe
+            if (
+                kind == request.kind.value
+                and abs(math.remainder(yaw - request.yaw_rad, 2.0 * math.pi))
+                <= _PROBE_TURN_MATCH_RAD
+                and math.isclose(forward, request.forward_m, rel_tol=0.0, abs_tol=_PROBE_MATCH)
+                and math.isclose(left, request.left_m, rel_tol=0.0, abs_tol=_PROBE_MATCH)
             ):
                 return images
         self.not_in_log += 1

@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 import types
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 import pytest
 from mcap.writer import Writer as McapWriter
 
-from pipemap.localizer import LocalizerConfig, dumps_document
+from pipemap.localizer import LocalizerConfig, ProbeKind, ProbeRequest, dumps_document
 from pipemap.recorder import METADATA_RUN, LogMessage, LogWriter, Topic, read_log, schemas
 from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay import FileSource, LoggedSweep, replay
@@ -254,6 +257,36 @@ def test_an_active_run_makes_the_probe_moves_and_replay_answers_them_from_the_lo
         assert [p.kind for p in logged.probes] == [
             p.request.kind.value for p in ours.decision.probes
         ]
+
+
+def _probe_sweep(kind: str, yaw: float, forward: float = 0.0, left: float = 0.0) -> LoggedSweep:
+    frames = np.zeros((6, 8, 8), np.uint8)
+    frames.setflags(write=False)
+    return LoggedSweep(3, 1, 0, frames, 1.4, 0.0, probe=(kind, yaw, forward, left))
+
+
+@pytest.mark.parametrize(
+    ("logged", "asked", "answered"),
+    [
+        # The turn the localizer asks for moves in its last digits with the arithmetic:
+        # the log's probe answers it to 1e-3 rad, across the wrap at half a turn too.
+        (("rotate", 1.0), ProbeRequest(ProbeKind.ROTATE, yaw_rad=1.0 + 9e-4), True),
+        (("rotate", 1.0), ProbeRequest(ProbeKind.ROTATE, yaw_rad=1.0 - 9e-4), True),
+        (("rotate", math.pi - 4e-4), ProbeRequest(ProbeKind.ROTATE, yaw_rad=-math.pi + 4e-4), True),
+        (("rotate", 1.0), ProbeRequest(ProbeKind.ROTATE, yaw_rad=1.0 + 2e-3), False),
+        # Steps are the configured distance: exact.
+        (("forward", 0.0, 0.03), ProbeRequest(ProbeKind.FORWARD, forward_m=0.03), True),
+        (("forward", 0.0, 0.03), ProbeRequest(ProbeKind.FORWARD, forward_m=0.0301), False),
+        (("forward", 0.0, 0.03), ProbeRequest(ProbeKind.BACK, forward_m=0.03), False),
+    ],
+)
+def test_a_logged_probe_answers_the_request_for_its_move(
+    logged: tuple[Any, ...], asked: ProbeRequest, answered: bool
+) -> None:
+    answers = replayer_module._LoggedProbes([_probe_sweep(*logged)])
+    got = answers.probe(asked)
+    assert (got is not None) == answered
+    assert answers.not_in_log == (0 if answered else 1)
 
 
 def _node_event(t: int, kind: int, visit: int, exit_rad: float = 0.0) -> LogMessage:
