@@ -216,3 +216,46 @@ def test_the_refinement_cache_holds_a_few_sets_whatever_the_database() -> None:
     assert one is not None and one > 0
     assert len(matcher._fine_cache) == _FINE_CACHE
     assert matcher.cache_bytes() == pytest.approx(_FINE_CACHE * one)
+
+
+def _unrounded_fine(image_set: ImageSet) -> np.ndarray:
+    from pipemap.localizer.prepared import _fine_scaled
+
+    return _fine_scaled(image_set.cropped(), FastConfig())
+
+
+def test_a_lamp_lit_sweep_keeps_its_refinement_images_in_two_bytes_a_pixel() -> None:
+    """Divided by its illumination, a sweep's quarter-scale images are float32
+    quotients: they go on a 1/256 grey-level grid (moved by 1/512 at most) and are
+    kept as uint16, and the query's own refinement uses the same rounded images that
+    a known junction rebuilds from what it keeps."""
+    from pipemap.localizer.illumination import normalised
+    from pipemap.localizer.spectra import _fine_spectra
+
+    lit = normalised(sweep(panorama(3)))
+    prepared = prepare(lit, FastConfig())
+    kept = prepared.fine_images
+    assert kept is not None and kept.values.dtype == np.uint16 and kept.scale == 256.0
+    unrounded = _unrounded_fine(lit)
+    assert not np.array_equal(unrounded * 256.0, np.rint(unrounded * 256.0))  # off the grid
+    assert np.array_equal(kept.images(), np.rint(unrounded * 256.0) / 256.0)
+    assert np.abs(kept.images() - unrounded).max() <= 1.0 / 512.0
+    rebuilt = _fine_spectra(kept.images(), lit.width)
+    assert prepared.fine is not None
+    assert np.array_equal(prepared.fine.spectrum, rebuilt.spectrum)
+
+
+def test_box_means_of_8_bit_pixels_are_kept_exactly() -> None:
+    """Evenly lit 8-bit sweeps (the paper's sets): the quarter-scale means of 16 pixels,
+    exactly, in sixteenths of a grey level; no rounding."""
+    eight_bit = ImageSet(np.rint(sweep(panorama(4)).images))
+    kept = prepare(eight_bit, FastConfig()).fine_images
+    assert kept is not None and kept.values.dtype == np.uint16 and kept.scale == 16.0
+    assert np.array_equal(kept.images(), _unrounded_fine(eight_bit))
+
+
+def test_images_beyond_0_to_255_keep_their_refinement_images_as_they_are() -> None:
+    wide = ImageSet(sweep(panorama(5)).images * 4.0 - 100.0)
+    kept = prepare(wide, FastConfig()).fine_images
+    assert kept is not None and kept.values.dtype == np.float64
+    assert np.array_equal(kept.images(), _unrounded_fine(wide))
