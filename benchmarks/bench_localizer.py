@@ -16,7 +16,8 @@ Usage: ``python benchmarks/bench_localizer.py [--sets DIR] [--reference-pairs K]
 alone: the shared sets at 400 px as queries, decided at the defaults (two-view check
 included) by a localizer that knows 10, 100 and 1000 junctions (augmented copies),
 one core; wall and CPU time per decision (the median over queries of each query's
-quickest of N tries, 5 by default) and the memory kept per known junction.
+quickest of N tries, 5 by default) and the memory kept per known junction (also as
+a lamp-lit camera's localizer keeps 100 of them, ``memory_per_junction_lamp_kib``).
 Agreement is measured against the stored reference
 values of all 55 pairs (``tests/localizer/data/paper_reference.json``, which a test
 keeps current); the reference is timed on K pairs (default 3). ``--write-reference``
@@ -57,6 +58,7 @@ from pipemap.localizer import (  # noqa: E402
     FastMatcher,
     ImageSet,
     Localizer,
+    LocalizerConfig,
     TopoMap,
     fit_two_view,
     pairwise_matches,
@@ -66,6 +68,7 @@ from pipemap.localizer import (  # noqa: E402
 )
 
 DEFAULT_SETS = ROOT.parent / "shared" / "paper_imagesets"
+from pipemap.localizer.illumination import normalised  # noqa: E402
 from pipemap.localizer.twoview import StoredFeatures, stored_features  # noqa: E402
 
 REFERENCE_VALUES = ROOT / "tests" / "localizer" / "data" / "paper_reference.json"
@@ -99,18 +102,28 @@ def resized(image_set: ImageSet, px: int) -> ImageSet:
 
 
 def _distractor_localizer(
-    queries: list[ImageSet], size: int, rng: np.random.Generator
+    queries: list[ImageSet], size: int, rng: np.random.Generator, lamp: bool = False
 ) -> tuple[Localizer, list[StoredFeatures]]:
     """A localizer that knows ``size`` distractors, seeded as the localizer itself
     does for a new junction (prepare once, keypoints once) without deciding each;
-    and the distractors' keypoints."""
-    localizer = Localizer()
+    and the distractors' keypoints. With ``lamp``, as a lamp-lit camera's localizer
+    sees them: each divided by its illumination first."""
+    localizer = Localizer(LocalizerConfig(lamp=lamp))
     for _ in range(size):
         distractor = augmented_set(queries, rng)
+        if lamp:
+            distractor = normalised(distractor, localizer.config.illumination)
         localizer._matcher.add(localizer._matcher.prepare(distractor))
         localizer._features.append(stored_features(distractor, localizer.config.two_view_config))
         localizer.map.visit(len(localizer._features) - 1)
     return localizer, list(localizer._features)
+
+
+def _kept_per_junction_kib(localizer: Localizer) -> float:
+    """What each known junction keeps: the matcher's arrays and compact images, and
+    its keypoints (KiB)."""
+    held = localizer._matcher.kept_bytes() + sum(f.nbytes for f in localizer._features)
+    return held / localizer.known_count / 1024
 
 
 def _forget_after(localizer: Localizer, count: int, saved: TopoMap) -> None:
@@ -163,8 +176,7 @@ def decision_benchmark(
             cpus.append(min(t[1] for t in tries))
         decision_ms[str(size)] = round(statistics.median(walls) * 1000, 2)
         cpu_ms[str(size)] = round(statistics.median(cpus) * 1000, 2)
-        held = localizer._matcher.kept_bytes() + sum(f.nbytes for f in localizer._features)
-        memory = held / localizer.known_count / 1024
+        memory = _kept_per_junction_kib(localizer)
         # Beside what each junction keeps: the refinement cache's few sets, a fixed sum.
         cache = localizer._matcher.cache_bytes() / 1024
         if check:
@@ -179,6 +191,11 @@ def decision_benchmark(
         "decision_ms": decision_ms,
         "decision_cpu_ms": cpu_ms,
         "memory_per_junction_kib": round(memory, 1),
+        # The same junctions as a lamp-lit camera's localizer keeps them (normalised
+        # images: their refinement images on a 1/256 grey-level grid).
+        "memory_per_junction_lamp_kib": round(
+            _kept_per_junction_kib(_distractor_localizer(queries, 100, rng, lamp=True)[0]), 1
+        ),
         "refine_cache_kib": round(cache, 1),
         "two_view": True,
         "queries": len(queries),
