@@ -170,8 +170,8 @@ def _refinement_images(images: np.ndarray, config: FastConfig) -> tuple[np.ndarr
         return images, exact
     if float(images.min()) < 0.0 or float(images.max()) > 255.0:
         return images, exact
-    gridded = np.rint(images * GREY_GRID) / GREY_GRID
-    return gridded, Compact.of(gridded, GREY_GRID)
+    steps = np.rint(images * GREY_GRID)  # whole steps, 0..65280: exact in uint16
+    return steps / GREY_GRID, Compact(steps.astype(np.uint16), GREY_GRID)
 
 
 def _area_downsampled(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarray:
