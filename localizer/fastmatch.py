@@ -115,7 +115,10 @@ class FastMatcher:
         for known in self._sets:
             if known.fine_images is not None:
                 total += known.fine_images.values.nbytes
-            total += sum(z.spectrum.nbytes + z.inv_window_norm.nbytes for z in known.zoomed)
+            total += sum(
+                z.spectrum.nbytes + (0 if z.inv_window_norm is None else z.inv_window_norm.nbytes)
+                for z in known.zoomed
+            )
         return total
 
     def cache_bytes(self) -> int:
@@ -126,6 +129,7 @@ class FastMatcher:
         for i, cached in self._fine_cache.items():
             fine = cached.fine
             if fine is not None and self._sets[i].fine is None:  # rebuilt, not kept
+                assert fine.inv_window_norm is not None
                 total += fine.spectrum.nbytes + fine.inv_window_norm.nbytes + fine.inv_norm.nbytes
         return total
 
@@ -137,7 +141,7 @@ class FastMatcher:
             self._fine_cache.move_to_end(i)
             return cached
         known = self._sets[i]
-        if known.fine is None:
+        if known.fine is None or known.fine.inv_window_norm is None:
             assert known.fine_images is not None
             known = replace(known, fine=_fine_spectra(known.fine_images.images(), known.width_px))
         self._fine_cache[i] = known

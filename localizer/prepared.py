@@ -277,7 +277,9 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
         image_rows=np.ascontiguousarray(spectra.transpose(2, 1, 0), np.complex64),
         inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
-        fine=_fine_spectra(fine_images, image_set.width),
+        # Searched only by its own baseline; in a database it is rebuilt from
+        # ``fine_images`` (``FastMatcher._refinable``).
+        fine=_fine_spectra(fine_images, image_set.width, searched=config.baseline),
         fine_images=kept_fine,
         zoomed=tuple(
             _fine_spectra(_fine_scaled(_zoomed(image_set, zoom), config), image_set.width)

@@ -259,3 +259,25 @@ def test_images_beyond_0_to_255_keep_their_refinement_images_as_they_are() -> No
     kept = prepare(wide, FastConfig()).fine_images
     assert kept is not None and kept.values.dtype == np.float64
     assert np.array_equal(kept.images(), _unrounded_fine(wide))
+
+
+def test_a_query_is_prepared_without_the_window_norms_only_a_searched_set_needs() -> None:
+    """The refinement searches the known set's images, never the query's: a prepared
+    set has no window norms (a fifth of its spectra's time); a database rebuilds
+    them when it refines the set as a known one, and the match is the same as with
+    norms computed up front. With ``baseline`` the set searches itself: kept."""
+    from pipemap.localizer.spectra import _fine_spectra
+
+    query = prepare(sweep(panorama(6), turn=9), FastConfig())
+    assert query.fine is not None and query.fine.inv_window_norm is None
+    with_baseline = prepare(sweep(panorama(6)), FastConfig(baseline=True))
+    assert with_baseline.fine is not None and with_baseline.fine.inv_window_norm is not None
+    matcher = FastMatcher()
+    matcher.add(prepare(sweep(panorama(6)), FastConfig()))
+    match = matcher.match(query)[0]
+    rebuilt = matcher._refinable(0).fine
+    assert rebuilt is not None and rebuilt.inv_window_norm is not None
+    full = _fine_spectra(query.fine_images.images(), query.width_px)  # type: ignore[union-attr]
+    assert full.inv_window_norm is not None
+    assert np.array_equal(full.spectrum, query.fine.spectrum)
+    assert match.refined and match.similarity > 0.9
