@@ -22,6 +22,7 @@ if TYPE_CHECKING:
         FastConfig,
         FastMatcher,
         PreparedSet,
+        for_pairs,
         pairwise_matches,
         prepare,
     )
@@ -144,6 +145,7 @@ _EXPORTS = {
     "decision_record": "pipemap.localizer.mapjson",
     "dumps_document": "pipemap.localizer.mapjson",
     "fit_two_view": "pipemap.localizer.twoview",
+    "for_pairs": "pipemap.localizer.fastmatch",
     "overlapping_images": "pipemap.localizer.twoview",
     "map_document": "pipemap.localizer.mapjson",
     "ncc_same": "pipemap.localizer.similarity",
@@ -216,6 +218,7 @@ __all__ = [
     "decision_record",
     "dumps_document",
     "fit_two_view",
+    "for_pairs",
     "overlapping_images",
     "map_document",
     "match_ports",

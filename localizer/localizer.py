@@ -181,6 +181,9 @@ class Localizer:
         self._features: list[StoredFeatures] = []
         self.map = TopoMap()
         self._last: Decision | None = None
+        #: The last visit's own sweep as the matcher prepared it (lit), for whoever
+        #: compares visits later (a score's pairs); ``None`` before the first.
+        self.last_prepared: PreparedSet | None = None
 
     @property
     def known_count(self) -> int:
@@ -232,6 +235,7 @@ class Localizer:
         exits = None if exits_rad is None else tuple(float(e) for e in exits_rad)
         query = self._lit(query)
         prepared = self._matcher.prepare(query)
+        self.last_prepared = prepared
         matches, best, sim, margin = self._best(prepared)
         match = matches[best] if best is not None else None
         # The sweep that gave ``match``, its matches (as computed, not turned), its turn.

@@ -246,6 +246,16 @@ def _zoomed(image_set: ImageSet, zoom: float) -> np.ndarray:
     return out
 
 
+def config_key(config: FastConfig) -> tuple[float, ...]:
+    """The settings a prepared set depends on, as the end of its ``shape_key``."""
+    return (
+        *(getattr(config, f) for f in _SHAPE_FIELDS),
+        config.highpass_fraction,
+        config.baseline,
+        *config.zooms,
+    )
+
+
 def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     """Precompute everything the fast path needs of one image set."""
     if config.highpass_fraction > 0.0:
@@ -268,10 +278,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
             *image_set.images.shape,
             image_set.fov_rad,
             image_set.keep_top_fraction,
-            *(getattr(config, f) for f in _SHAPE_FIELDS),
-            config.highpass_fraction,
-            config.baseline,
-            *config.zooms,
+            *config_key(config),
         ),
         template_rows=np.ascontiguousarray(np.conj(spectra).transpose(2, 0, 1), np.complex64),
         inv_template_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),

@@ -9,16 +9,16 @@ readable PNG is skipped with a warning, and the rest go on.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, overload
 
 import cv2
 import numpy as np
 from google.protobuf.message import DecodeError
 
 from pipemap.errors import PipemapError
-from pipemap.localizer import ImageSet
+from pipemap.localizer import IlluminationConfig, ImageSet, normalised
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.messages import blocked_visit, decode_png
 from pipemap.recorder.schemas import CompressedImage, Log, NodeEvent, SweepCommand
@@ -29,6 +29,7 @@ __all__ = [
     "LoggedExits",
     "LoggedSweep",
     "NodeEvents",
+    "SeenSets",
     "SweepAssembler",
     "SweepSets",
     "Sweeps",
@@ -91,6 +92,39 @@ class SweepSets(Mapping[int, ImageSet]):
 
     def __len__(self) -> int:
         return len(self._sweeps)
+
+
+class SeenSets(Sequence[ImageSet]):
+    """The visit sets of sweeps ``ids`` as the localizer saw them (normalised under a
+    lamp), each made when looked up: :func:`pipemap.localizer.pairwise_matches`
+    prepares each set once and keeps only what it prepared, so the float32 sets of a
+    whole log are never all held at once (a score's pairs with other matcher settings
+    than the replay's)."""
+
+    def __init__(
+        self,
+        sets: Mapping[int, ImageSet],
+        ids: list[int],
+        illumination: IlluminationConfig | None,
+    ) -> None:
+        self._sets, self._ids, self._illumination = sets, ids, illumination
+
+    @overload
+    def __getitem__(self, index: int) -> ImageSet: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> Sequence[ImageSet]: ...
+
+    def __getitem__(self, index: int | slice) -> ImageSet | Sequence[ImageSet]:
+        if isinstance(index, slice):
+            return [self[k] for k in range(len(self))[index]]
+        image_set = self._sets[self._ids[index]]
+        if self._illumination is None:
+            return image_set
+        return normalised(image_set, self._illumination)
+
+    def __len__(self) -> int:
+        return len(self._ids)
 
 
 @dataclass(frozen=True)

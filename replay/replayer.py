@@ -29,12 +29,15 @@ from typing import Any
 
 from pipemap.localizer import (
     Decision,
+    FastConfig,
     IlluminationConfig,
     ImageSet,
     Localizer,
     LocalizerConfig,
+    PreparedSet,
     ProbeRequest,
     TopoMap,
+    for_pairs,
     map_document,
 )
 from pipemap.recorder import Integrity, Topic
@@ -116,6 +119,12 @@ class ReplayResult:
     #: The image set of each visit's own sweep (probes aside), by sweep id; made on
     #: each lookup (:class:`SweepSets`).
     visit_sets: Mapping[int, ImageSet] = field(default_factory=dict)
+    #: Each visit's own sweep as the localizer's matcher prepared it (lit as it saw
+    #: it), in the compact form pairs of visits are compared from
+    #: (:func:`pipemap.localizer.fastmatch.for_pairs`), by sweep id; and the matcher's
+    #: settings. About a tenth of the memory of :attr:`visit_sets`.
+    visit_prepared: Mapping[int, PreparedSet] = field(default_factory=dict)
+    fast: FastConfig | None = None
     #: Positions in ``visits`` before which the path is broken (a visit was lost).
     breaks: tuple[int, ...] = ()
     #: The localizer after the replay: its map and its junctions' sweeps, ready to
@@ -196,9 +205,11 @@ class _Replay:
         progress: Callable[[int, int | None], None] | None,
         keep_sets: bool,
         whole: bool,
+        keep_prepared: bool = False,
     ) -> None:
         self.source, self.config, self.progress = source, config, progress
-        self.keep_sets, self.whole = keep_sets, whole
+        self.keep_sets, self.whole, self.keep_prepared = keep_sets, whole, keep_prepared
+        self.visit_prepared: dict[int, PreparedSet] = {}
         self.sweeps = SweepAssembler(source.name)
         self.events = NodeEvents(source.name)
         self.localizer: Localizer | None = None
@@ -275,6 +286,8 @@ class _Replay:
         start = time.perf_counter()
         decision = localizer.localize(images, answers, exits, odometer)
         latency = time.perf_counter() - start
+        if self.keep_prepared and localizer.last_prepared is not None:
+            self.visit_prepared[sweep.sweep_id] = for_pairs(localizer.last_prepared)
         for given_up in () if scan is None else scan.blocked_rad:
             localizer.depart(given_up)
             localizer.block()
@@ -321,6 +334,8 @@ class _Replay:
             images=self.image_count,
             camera_angles=self.camera_angles,
             visit_sets=SweepSets(self.visit_sweeps),
+            visit_prepared=self.visit_prepared,
+            fast=localizer.config.fast,
             breaks=tuple(self.breaks),
             localizer=localizer,
             illumination=localizer.config.illumination if localizer.config.lamp else None,
@@ -332,11 +347,14 @@ def replay(
     config: LocalizerConfig | None = None,
     progress: Callable[[int, int | None], None] | None = None,
     keep_sets: bool = True,
+    keep_prepared: bool = True,
 ) -> ReplayResult:
     """Feed every visit's sweep of ``source`` to a new localizer, in the robot's order.
 
     Each visit is decided as soon as the log has told all of it, and its images are
-    then dropped (kept only with ``keep_sets``, for :attr:`ReplayResult.visit_sets`):
+    then dropped (kept only with ``keep_sets``, for :attr:`ReplayResult.visit_sets`;
+    as the matcher prepared them, compactly, with ``keep_prepared``, for
+    :attr:`ReplayResult.visit_prepared`, which a score compares in pairs):
     a replay of a source that reads its file as it goes
     (:class:`replay.source.StreamSource`) holds the map, not the log. The map is the
     one of deciding every visit after reading the whole log, byte for byte: where the
@@ -348,6 +366,6 @@ def replay(
     """
     config = config if config is not None else LocalizerConfig()
     try:
-        return _Replay(source, config, progress, keep_sets, whole=False).run()
+        return _Replay(source, config, progress, keep_sets, False, keep_prepared).run()
     except (_WholeLogNeeded, LogTimeWentBack):
-        return _Replay(source, config, progress, keep_sets, whole=True).run()
+        return _Replay(source, config, progress, keep_sets, True, keep_prepared).run()

@@ -27,9 +27,9 @@ import csv
 import io
 import json
 import statistics
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import Any
 
 import numpy as np
 from google.protobuf.message import DecodeError
@@ -37,11 +37,10 @@ from google.protobuf.message import DecodeError
 from pipemap.errors import LogFormatError
 from pipemap.localizer import (
     FastConfig,
-    IlluminationConfig,
     ImageSet,
     LocalizerConfig,
+    PreparedSet,
     TopoMap,
-    normalised,
     pairwise_matches,
     wrap_angle_rad,
 )
@@ -55,6 +54,7 @@ from pipemap.replay.coverage import (
     ports_correct,
     true_network,
 )
+from pipemap.replay.logged import SeenSets
 from pipemap.replay.replayer import REPLAY_TOPICS, ReplayResult, replay, visit_label
 from pipemap.replay.source import MessageSource
 
@@ -284,38 +284,6 @@ SCORE_TOPICS = (*REPLAY_TOPICS, Topic.TRUE_SWEEP, Topic.NETWORK)
 MAX_DIFFERENT_PAIRS = 5000
 
 
-class _SeenSets(Sequence[ImageSet]):
-    """The visit sets of sweeps ``ids`` as the localizer saw them (normalised under a
-    lamp), each made when looked up: :func:`pairwise_matches` prepares each set once
-    and keeps only what it prepared, so the float32 sets of a whole log are never
-    all held at once."""
-
-    def __init__(
-        self,
-        sets: Mapping[int, ImageSet],
-        ids: list[int],
-        illumination: IlluminationConfig | None,
-    ) -> None:
-        self._sets, self._ids, self._illumination = sets, ids, illumination
-
-    @overload
-    def __getitem__(self, index: int) -> ImageSet: ...
-
-    @overload
-    def __getitem__(self, index: slice) -> Sequence[ImageSet]: ...
-
-    def __getitem__(self, index: int | slice) -> ImageSet | Sequence[ImageSet]:
-        if isinstance(index, slice):
-            return [self[k] for k in range(len(self))[index]]
-        image_set = self._sets[self._ids[index]]
-        if self._illumination is None:
-            return image_set
-        return normalised(image_set, self._illumination)
-
-    def __len__(self) -> int:
-        return len(self._ids)
-
-
 def pair_statistics(
     result: ReplayResult,
     truths: dict[int, TrueSweep],
@@ -329,9 +297,15 @@ def pair_statistics(
 
     The rotation of a pair is the localizer's estimate of the turn from the first
     visit's heading to the second's; its error is against the simulator's headings.
-    The sets are compared as the localizer saw them (normalised under a lamp).
+    The sets are compared as the localizer saw them (normalised under a lamp): as its
+    matcher prepared them (:attr:`ReplayResult.visit_prepared`) when ``fast`` is the
+    replay's, else made anew from :attr:`ReplayResult.visit_sets`.
     """
-    ids = sorted(i for i in result.visit_sets if i in truths)
+    asked = fast if fast is not None else FastConfig()
+    prepared = result.visit_prepared if result.fast == asked else {}
+    if result.visit_prepared and not prepared and not result.visit_sets:
+        raise ValueError("the replay's sets were prepared with other matcher settings")
+    ids = sorted(i for i in (prepared or result.visit_sets) if i in truths)
     nodes = [truths[i].node for i in ids]
     same_pairs: list[tuple[int, int]] = []
     different_pairs: list[tuple[int, int]] = []
@@ -343,7 +317,11 @@ def pair_statistics(
         rng = np.random.default_rng(0)
         keep = np.sort(rng.choice(total_different, size=max_different, replace=False))
         different_pairs = [different_pairs[k] for k in keep]
-    sets = _SeenSets(result.visit_sets, ids, result.illumination)
+    sets: Sequence[ImageSet | PreparedSet] = (
+        [prepared[i] for i in ids]
+        if prepared
+        else SeenSets(result.visit_sets, ids, result.illumination)
+    )
     headings = [truths[i].yaw_rad - result.camera_angles[i] for i in ids]
     same: list[float] = []
     different: list[float] = []
@@ -488,5 +466,5 @@ def _camera_angle(result: ReplayResult, sweep_id: int) -> float:
 def score(source: MessageSource, config: LocalizerConfig | None = None) -> ScoreReport:
     """Replay ``source`` and score the result against its truth."""
     config = config if config is not None else LocalizerConfig()
-    result = replay(source, config)
+    result = replay(source, config, keep_sets=False)
     return score_replay(result, source, config.threshold, config.fast)

@@ -74,7 +74,7 @@ def _score(path: Path, point: RunPoint) -> dict[str, Any]:
     config = RULES[point.rule].config(point.threshold)
     started = time.perf_counter()
     source = StreamSource(path, SCORE_TOPICS)
-    result = replay(source, config)
+    result = replay(source, config, keep_sets=False)
     report = score_replay(result, source, config.threshold, config.fast)
     known_errors = [
         abs(v.rotation_error_rad) for v in report.visits if v.rotation_error_rad is not None

@@ -103,7 +103,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     config = localizer_config(args)
     # Read as the replay goes: it holds the map, not the log.
     source = StreamSource(Path(args.log), REPLAY_TOPICS)
-    result = replay(source, config, progress_printer(err), keep_sets=False)
+    result = replay(source, config, progress_printer(err), keep_sets=False, keep_prepared=False)
     report_damage(args.log, source.contents, err)
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
@@ -135,7 +135,7 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         folder = output_folder(args.save_results, "--save-results", args.force)
     config = localizer_config(args)
     source = StreamSource(Path(args.log), SCORE_TOPICS)
-    result = replay(source, config, progress_printer(err))
+    result = replay(source, config, progress_printer(err), keep_sets=False)
     report = score_replay(result, source, config.threshold, config.fast)
     report_damage(args.log, source.contents, err)
     for warning in result.warnings:

@@ -207,7 +207,13 @@ class _Child:
                     spool.flush()
                     pickle.dump(_SPOOLED, pipe, protocol=_PROTOCOL)
                     pipe.flush()
-                    done = replay(source, config(), progress_printer(err), keep_sets=False)
+                    done = replay(
+                        source,
+                        config(),
+                        progress_printer(err),
+                        keep_sets=False,
+                        keep_prepared=False,
+                    )
                     # The view needs the decisions, not the visits' image sets (not
                     # kept) or the localizer's database of junctions.
                     payload: Any = dataclasses.replace(done, localizer=None)
@@ -294,7 +300,7 @@ def _view(
         from pipemap.replay import replay
 
         source = open_log()
-        done = replay(source, config(), progress_printer(err), keep_sets=False)
+        done = replay(source, config(), progress_printer(err), keep_sets=False, keep_prepared=False)
         _show(source, done, target)
     else:
         child = _Child(open_log, config, err, spool)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from pipemap.errors import LocalizerError
-from pipemap.localizer import ImageSet, pairwise_matches
+from pipemap.localizer import FastConfig, ImageSet, pairwise_matches
 from pipemap.replay import FileSource, replay, sweeps_of
 from pipemap.replay.score import pair_statistics, true_sweeps
 
@@ -96,13 +96,44 @@ def test_the_pairs_hold_no_more_than_a_set_at_a_time(replayed) -> None:  # type:
     # A thousand-junction log has thousands of visit sets, 3.8 MB each at 400 px as
     # float32: the replay keeps each sweep's 8-bit frames and makes its set on each
     # lookup, and the pairs prepare one set at a time from it.
+    # (Compared from the sets, as pairs with other matcher settings are.)
     result, truths = replayed
     sweep = next(iter(result.visit_sets))
     assert result.visit_sets[sweep] is not result.visit_sets[sweep]
     watched = _Watched(result.visit_sets)
-    stats = pair_statistics(dataclasses.replace(result, visit_sets=watched), truths)
-    assert stats == pair_statistics(result, truths)
+    from_sets = dataclasses.replace(result, visit_sets=watched, visit_prepared={})
+    stats = pair_statistics(from_sets, truths)
+    assert stats == pair_statistics(dataclasses.replace(result, visit_prepared={}), truths)
     assert len(watched) > 10 and watched.most_alive == 1
+
+
+def test_the_pairs_compare_the_sets_as_the_replay_prepared_them(replayed) -> None:  # type: ignore[no-untyped-def]
+    """A score keeps each visit as the localizer's matcher prepared it, without its
+    refinement spectra, not its sweep: the very pair statistics of preparing every
+    visit's sweep anew, for about a tenth of the memory."""
+    result, truths = replayed
+    assert sorted(result.visit_prepared) == sorted(result.visit_sets)
+    anew = pair_statistics(dataclasses.replace(result, visit_prepared={}), truths)
+    assert pair_statistics(dataclasses.replace(result, visit_sets={}), truths) == anew
+    for sweep_id, kept in result.visit_prepared.items():
+        assert kept.fine is None and kept.fine_images is not None
+        frames = result.visit_sets[sweep_id].images.size  # the sweep's bytes in 8 bits
+        held = sum(a.nbytes for a in (kept.template_rows, kept.image_rows, kept.inv_window_norm))
+        assert held + kept.fine_images.values.nbytes < frames / 4
+
+
+def test_pairs_with_other_matcher_settings_need_the_sets(replayed) -> None:  # type: ignore[no-untyped-def]
+    result, truths = replayed
+    other = FastConfig(refine_offsets=3)
+    with_sets = pair_statistics(result, truths, other)
+    assert with_sets == pair_statistics(
+        dataclasses.replace(result, visit_prepared={}), truths, other
+    )
+    with pytest.raises(ValueError, match="other matcher settings"):
+        pair_statistics(dataclasses.replace(result, visit_sets={}), truths, other)
+    kept = [result.visit_prepared[i] for i in sorted(result.visit_prepared)][:3]
+    with pytest.raises(LocalizerError, match="other matcher settings"):
+        pairwise_matches(kept, FastConfig(coarse_downsample=8))
 
 
 def test_a_replay_keeps_each_sweep_in_8_bits() -> None:
