@@ -114,7 +114,7 @@ class TwoViewConfig:
     #: grid, same ones 20 or more (95 or more inliers in the end). ``gate_every = 1``:
     #: one stage.
     #:
-    #: ``gate_share`` 0.7 (0.5 before this round of issue 17): over every fit of 107
+    #: ``gate_share`` 0.7 (0.5 before issue 17's stop 29): over every fit of 107
     #: replayed logs (the 80 of ``experiments/maps.toml``, the 3 stored, 24 older
     #: reference ones at 96 to 400 px), the paper's sets and the distractors of
     #: ``benchmarks/bench_localizer.py``, 3 023 fits, 755 of them successful, each
