@@ -145,3 +145,13 @@ def test_a_replay_keeps_each_sweep_in_8_bits() -> None:
     assert images.images.dtype == np.float32
     assert np.array_equal(images.images, first.frames)
     assert (images.count, images.camera_angle_rad) == (first.count, first.camera_angle_rad)
+
+
+def test_a_replay_keeps_the_prepared_sets_only_when_asked() -> None:
+    """``pipemap replay`` holds the map, not the visits: it asks for neither the sweeps
+    nor the prepared sets; ``score`` asks for the prepared sets alone."""
+    bare = replay(FileSource(LOG), keep_sets=False, keep_prepared=False)
+    assert bare.visit_prepared == {} and len(bare.visit_sets) == 0
+    for_score = replay(FileSource(LOG), keep_sets=False)
+    assert len(for_score.visit_prepared) == len(for_score.visits) > 10
+    assert len(for_score.visit_sets) == 0
