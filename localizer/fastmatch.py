@@ -51,6 +51,7 @@ from pipemap.localizer.prepared import (
 from pipemap.localizer.similarity import SetMatch, best_offset, wrap_angle_rad
 from pipemap.localizer.spectra import (
     FineSpectra,
+    _fft,
     _fft_length,
     _fine_spectra,
     _offset_scores,
@@ -196,7 +197,7 @@ class FastMatcher:
             spectrum = np.matmul(
                 query.template_rows[:, :, r0:r1], image_rows[:, r0 + dy : r1 + dy, :]
             )  # (F, N, N*M): every query image against every known image
-            corr = np.fft.irfft(spectrum.transpose(1, 2, 0), n=length, axis=2)[:, :, lags]
+            corr = _fft().irfft(spectrum.transpose(1, 2, 0), n=length, axis=2)[:, :, lags]
             ncc = corr * inv_window_norm[d][None, :, :]
             ncc *= query.inv_template_norm[:, None, None].astype(np.float32)
             col = np.argmax(ncc, axis=2)  # whole pixels: the screen ranks, it does not measure

@@ -8,6 +8,7 @@ compares blocks of image pairs of two prepared sets.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import cv2
@@ -18,6 +19,7 @@ from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.similarity import paper_scaled
 from pipemap.localizer.spectra import (
     FineSpectra,
+    _fft,
     _fft_length,
     _fine_peaks,
     _fine_spectra,
@@ -175,14 +177,37 @@ def _refinement_images(images: np.ndarray, config: FastConfig) -> tuple[np.ndarr
 
 
 def _area_downsampled(images: np.ndarray, row_factor: int, col_factor: int) -> np.ndarray:
+    """The screening's images: ``images`` reduced by about the factors, each output
+    pixel the mean of the input area it covers (what OpenCV's ``INTER_AREA`` does).
+
+    As two products with weight matrices (:func:`_area_weights`), rows first in
+    float32 (as OpenCV sums float32 images), then columns in float64: a seventh of
+    ``cv2.resize``'s time, whose general path (a row factor such as 200 / 12) took
+    0.18 ms a 400 px image. The two differ by float32 rounding, 4e-5 grey levels at
+    most.
+    """
     if row_factor == col_factor == 1:
         return images.astype(np.float64)
     n, h, w = images.shape
     hd, wd = max(h // row_factor, 2), max(w // col_factor, 2)
-    out = np.empty((n, hd, wd), dtype=np.float64)
-    for i in range(n):
-        out[i] = cv2.resize(images[i], (wd, hd), interpolation=cv2.INTER_AREA)
+    rows, cols = _area_weights(h, hd), _area_weights(w, wd)
+    reduced = np.matmul(rows.astype(np.float32), np.asarray(images, dtype=np.float32))
+    out: np.ndarray = np.matmul(reduced.astype(np.float64), cols.T)
     return out
+
+
+@functools.lru_cache(maxsize=8)
+def _area_weights(size: int, reduced: int) -> np.ndarray:
+    """``(reduced, size)``: the share of each input pixel in each output pixel when a
+    line of ``size`` pixels is reduced to ``reduced`` by area averaging (output ``i``
+    covers ``[i s, (i + 1) s)`` with ``s = size / reduced``; each row sums to 1)."""
+    scale = size / reduced
+    edges = np.arange(reduced + 1) * scale
+    start = np.maximum(edges[:-1, None], np.arange(size)[None, :])
+    stop = np.minimum(edges[1:, None], np.arange(1, size + 1)[None, :])
+    weights: np.ndarray = np.clip(stop - start, 0.0, None) / scale
+    weights.setflags(write=False)
+    return weights
 
 
 def _fine_scaled(images: np.ndarray, config: FastConfig) -> np.ndarray:
@@ -265,7 +290,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     small = _area_downsampled(cropped, config.coarse_row_downsample, config.coarse_downsample)
     n, rows, wd = small.shape
     zero_mean = small - small.mean(axis=(1, 2), keepdims=True)
-    spectra = np.fft.rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
+    spectra = _fft().rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
     dy_max = min(config.coarse_dy_px // config.coarse_row_downsample, rows - 1)
     dys = np.arange(-dy_max, dy_max + 1)
     inv_norms = _inverse(_window_norms(zero_mean, dys, _same_shifts(wd))).transpose(1, 0, 2)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from types import ModuleType
 
 import cv2
 import numpy as np
@@ -17,6 +18,19 @@ import numpy as np
 from pipemap.localizer.similarity import sums_from_integral
 
 __all__ = ["FineSpectra"]
+
+
+def _fft() -> ModuleType:
+    """``scipy.fft``, imported on first use (0.15-0.24 s of a command's start).
+
+    Not ``numpy.fft``: numpy 2.4's single-precision transforms of this matcher's
+    lengths (75 and 150: factors 3 and 5) took 5 to 7 times scipy's (a quarter-scale
+    set's rows, 437 against 66 us); issue 17, stop 30, docs/performance.md.
+    """
+    from scipy import fft
+
+    module: ModuleType = fft
+    return module
 
 
 def _fft_length(size: int) -> int:
@@ -146,8 +160,8 @@ def _fine_spectra(fine: np.ndarray, full_width_px: int, searched: bool = True) -
     zero_mean = fine.astype(np.float64) - fine.mean(axis=(1, 2), keepdims=True)
     length = (_fft_length(rows), _fft_length(width))
     # Two stages so that the zero rows of the padding are never transformed along x.
-    along_x = np.fft.rfft(zero_mean.astype(np.float32), n=length[1], axis=2)
-    spectrum = np.fft.fft(along_x, n=length[0], axis=1)
+    along_x = _fft().rfft(zero_mean.astype(np.float32), n=length[1], axis=2)
+    spectrum = _fft().fft(along_x, n=length[0], axis=1)
     return FineSpectra(
         rows=rows,
         width=width,
@@ -182,8 +196,8 @@ def _fine_peaks(
         assert known.inv_window_norm is not None, "a query's spectra cannot be searched"
         inv_window[b] = known.inv_window_norm[order]
     product = product.reshape(-1, *ramped.shape[1:])
-    along_y = np.fft.ifft(product, axis=1)[:, :rows]
-    ncc = np.fft.irfft(along_y, n=query.length[1], axis=2)[:, :, :width]
+    along_y = _fft().ifft(product, axis=1)[:, :rows]
+    ncc = _fft().irfft(along_y, n=query.length[1], axis=2)[:, :, :width]
     ncc *= inv_window.reshape(-1, rows, width)
     ncc *= np.tile(query.inv_norm, len(blocks)).astype(np.float32)[:, None, None]
     best_row = np.argmax(ncc.reshape(len(ncc), -1), axis=1) // width

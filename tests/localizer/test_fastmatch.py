@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -12,6 +13,7 @@ from hypothesis import strategies as st
 from pipemap.errors import LocalizerError
 from pipemap.localizer import FastConfig, FastMatcher, ImageSet, pairwise_matches, wrap_angle_rad
 from pipemap.localizer.fastmatch import prepare
+from pipemap.localizer.prepared import _area_downsampled, _area_weights
 from pipemap.localizer.similarity import reference_match
 from tests.localizer.synthetic import expected_rotation_rad, panorama, sweep
 
@@ -281,3 +283,22 @@ def test_a_query_is_prepared_without_the_window_norms_only_a_searched_set_needs(
     assert full.inv_window_norm is not None
     assert np.array_equal(full.spectrum, query.fine.spectrum)
     assert match.refined and match.similarity > 0.9
+
+
+@pytest.mark.parametrize(
+    ("shape", "factor"),
+    [((2, 200, 400), 16), ((2, 48, 96), 16), ((2, 37, 61), 16), ((2, 5, 7), 16), ((2, 60, 200), 8)],
+)
+def test_the_screening_images_are_opencvs_area_means(
+    shape: tuple[int, int, int], factor: int
+) -> None:
+    # Whole and fractional factors (200 rows to 12, 37 to 2, 61 columns to 3): each
+    # screening pixel is the mean of the area it covers, as OpenCV's INTER_AREA gives.
+    images = np.random.default_rng(4).uniform(0.0, 255.0, shape).astype(np.float32)
+    _, h, w = shape
+    size = (max(w // factor, 2), max(h // factor, 2))
+    expected = np.stack([cv2.resize(im, size, interpolation=cv2.INTER_AREA) for im in images])
+    got = _area_downsampled(images, factor, factor)
+    assert got.dtype == np.float64 and got.shape == expected.shape
+    np.testing.assert_allclose(got, expected, rtol=0.0, atol=1e-4)
+    np.testing.assert_allclose(_area_weights(h, size[1]).sum(axis=1), 1.0, rtol=1e-12)
