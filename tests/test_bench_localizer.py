@@ -1,0 +1,39 @@
+"""``benchmarks/bench_localizer.py --json``: what its decision timings measure.
+
+The benchmark's numbers go in the README; this checks the method, not the times: a
+cold try rebuilds its candidates' refinement spectra, a warm one finds them cached.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+from tests.conftest import REPO, PaperSet
+
+
+@pytest.fixture(scope="module")
+def bench() -> ModuleType:
+    path = REPO / "benchmarks" / "bench_localizer.py"
+    spec = importlib.util.spec_from_file_location("bench_localizer_under_test", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_cold_tries_rebuild_the_candidates_spectra_and_warm_ones_do_not(
+    bench: ModuleType, paper_sets: dict[str, PaperSet]
+) -> None:
+    sets = {name: paper_sets[name].images for name in sorted(paper_sets)[:3]}
+    result = bench.decision_benchmark(sets, [4], px=96, repeat=2)
+    # Two refined candidates a decision (FastConfig.refine_candidates), every cold try.
+    assert result["rebuilds_per_decision"] == {"warm": 0.0, "cold": 2.0}
+    assert set(result["decision_cold_ms"]) == set(result["decision_ms"]) == {"4"}
+    assert result["known"] == 0 and result["two_view"] is True
+    assert Path(bench.__file__).name == "bench_localizer.py"
