@@ -40,6 +40,8 @@ FOLDERS: dict[str, str] = {
 #: everything below it). The most specific area of a module applies.
 ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
     "pipemap.errors": (),
+    # glibc's allocator set up to keep freed memory (the CLI and batch workers call it).
+    "pipemap.allocator": (),
     "pipemap": (),  # the root __init__: nothing of the project, so importing it is free
     "pipemap.localizer": ("pipemap.localizer", "pipemap.errors"),
     "pipemap.sim": ("pipemap.sim", "pipemap.errors"),
@@ -74,6 +76,7 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.sim",
         "pipemap.localizer",
         "pipemap.errors",
+        "pipemap.allocator",
         "pipemap.__version__",
     ),
     "pipemap.cli": ("pipemap",),
@@ -81,7 +84,7 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
 }
 
 #: Areas loaded by every layer: standard library only.
-STDLIB_ONLY = ("pipemap.errors", "pipemap", "pipemap.pngcheck")
+STDLIB_ONLY = ("pipemap.errors", "pipemap", "pipemap.pngcheck", "pipemap.allocator")
 
 #: The names the layers had before they moved under ``pipemap``: importing one is
 #: always wrong (installed, they do not exist).

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from pipemap import __version__
+from pipemap.allocator import keep_freed_memory
 from pipemap.batch.results import (
     RESULT_FILES,
     read_result,
@@ -367,7 +368,8 @@ def _recordings(points: tuple[RunPoint, ...]) -> list[tuple[RunPoint, ...]]:
 
 
 def _one_thread(task: Task) -> Task:
-    """``task`` with OpenCV held to one thread.
+    """``task`` with OpenCV held to one thread, and the worker's allocator set up as a
+    command's is (:func:`pipemap.allocator.keep_freed_memory`).
 
     Each task has one core (``num_cpus=1``), and the others are busy with tasks of
     their own. Ray sets ``OMP_NUM_THREADS=1`` for that, but OpenCV's thread pool does
@@ -382,6 +384,7 @@ def _one_thread(task: Task) -> Task:
         import cv2
 
         cv2.setNumThreads(1)
+        keep_freed_memory()  # as the command line does (pipemap.allocator)
         return task(*args, **kwargs)
 
     return on_one_thread

@@ -17,6 +17,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import TextIO
 
+from pipemap.allocator import keep_freed_memory
 from pipemap.cli.localizer_options import apply_presets
 from pipemap.cli.parser import build_parser
 from pipemap.errors import PipemapError, WriteError
@@ -53,6 +54,7 @@ COMMANDS: dict[str, str] = {
 
 def _run(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
+    keep_freed_memory()  # the same results, found sooner (pipemap.allocator)
     apply_presets(args)
     logging.basicConfig(
         level=logging.DEBUG if args.verbose else logging.WARNING,
