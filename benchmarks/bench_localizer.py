@@ -52,6 +52,7 @@ cv2.setNumThreads(1)
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from pipemap.allocator import keep_freed_memory  # noqa: E402
 from pipemap.imagesets import load_image_set, read_info  # noqa: E402
 from pipemap.localizer import (  # noqa: E402
     DEFAULT_THRESHOLD,
@@ -292,6 +293,7 @@ def main() -> int:
         help="with --json: fit every query against every distractor (minutes)",
     )
     args = parser.parse_args()
+    allocator_set_up = keep_freed_memory()  # as pipemap's commands run (pipemap.allocator)
     if args.json:
         names = sorted(p.name for p in args.sets.iterdir() if p.is_dir())
         sets = {n: load_image_set(args.sets / n) for n in names}
@@ -301,6 +303,7 @@ def main() -> int:
             else [int(x) for x in args.sizes.split(",")]
         )
         result = decision_benchmark(sets, sizes, args.px, args.check_distractors, args.repeat)
+        result["allocator_set_up"] = allocator_set_up
         print(json.dumps(result, indent=2))
         return 0
 

@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 from pipemap import __version__
+from pipemap.allocator import keep_freed_memory
 from pipemap.recorder import RecordSettings, record_run
 from pipemap.replay import REPLAY_TOPICS, StreamSource, replay
 from pipemap.sim.network import build_network
@@ -57,6 +58,7 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--no-record", action="store_true", help="skip the 400 px run")
     args = parser.parse_args()
+    keep_freed_memory()  # as pipemap's commands run (pipemap.allocator)
     logs = args.logs or sorted(RECORDINGS.glob("*.mcap"))
     print(f"replay, best of {args.repeat} (one core):")
     for path in logs:

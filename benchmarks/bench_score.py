@@ -28,6 +28,7 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 
 from pipemap import api  # noqa: E402
+from pipemap.allocator import keep_freed_memory  # noqa: E402
 from pipemap.localizer import LocalizerConfig  # noqa: E402
 from pipemap.localizer import localizer as localizer_module  # noqa: E402
 
@@ -58,6 +59,7 @@ def main() -> int:
     parser.add_argument("log", type=Path)
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args()
+    keep_freed_memory()  # as pipemap's commands run (pipemap.allocator)
     log = api.open_log(args.log)
     defaults = LocalizerConfig()
     configs = {
