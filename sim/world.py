@@ -133,6 +133,9 @@ class World:
         except BaseException:
             self.close()
             raise
+        # PyBullet has read every texture: the files go now, so that a process killed
+        # later (Ray ends a stopped batch's workers so) leaves none of them behind.
+        self._tmp.cleanup()
 
     def __enter__(self) -> World:
         return self

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,6 +29,13 @@ def test_renders_are_deterministic_and_depend_on_the_seed(paper_world) -> None: 
     assert np.array_equal(one, two)
     with World(build_network("paper"), seed=4, texture_px=128) as other:
         assert not np.array_equal(one, other.render(eye, 1.0, SMALL))
+
+
+def test_a_built_world_keeps_no_files_and_still_draws_its_textures(paper_world) -> None:  # type: ignore[no-untyped-def]
+    # A batch's worker killed mid-run would otherwise leave its texture files in /tmp.
+    assert not Path(paper_world._tmp.name).exists()
+    image = paper_world.render((0.0001, 1.5001, 0.05), 1.0, EVEN)
+    assert float(image.std()) > 5.0  # textured walls, not a flat colour
 
 
 def test_every_view_from_a_junction_sees_walls(paper_world) -> None:  # type: ignore[no-untyped-def]
