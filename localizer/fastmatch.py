@@ -48,10 +48,9 @@ from pipemap.localizer.prepared import (
     config_key,
     prepare,
 )
-from pipemap.localizer.similarity import SetMatch, best_offset, wrap_angle_rad
+from pipemap.localizer.similarity import SetMatch, _fft, best_offset, wrap_angle_rad
 from pipemap.localizer.spectra import (
     FineSpectra,
-    _fft,
     _fft_length,
     _fine_spectra,
     _offset_scores,

@@ -16,10 +16,9 @@ import numpy as np
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.similarity import paper_scaled
+from pipemap.localizer.similarity import _fft, paper_scaled
 from pipemap.localizer.spectra import (
     FineSpectra,
-    _fft,
     _fft_length,
     _fine_peaks,
     _fine_spectra,

@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from types import ModuleType
 
 import cv2
 import numpy as np
@@ -190,17 +191,29 @@ def sums_from_integral(integral: np.ndarray, dys: np.ndarray, dxs: np.ndarray) -
     return sums
 
 
+def _fft() -> ModuleType:
+    """``scipy.fft``, imported on first use (0.15-0.24 s of a command's start, and 28
+    MB resident): the reference and the fast matcher both transform with it.
+
+    Not ``numpy.fft``: numpy 2.4's single-precision transforms of the fast matcher's
+    lengths (75 and 150: factors 3 and 5) took 5 to 7 times scipy's (a quarter-scale
+    set's rows, 437 against 66 us); issue 17, stop 30, docs/performance.md.
+    """
+    from scipy import fft
+
+    module: ModuleType = fft
+    return module
+
+
 def _correlate_same(image: np.ndarray, template: np.ndarray) -> np.ndarray:
     """``sum_{y,x} template[y, x] * image[y + dy, x + dx]`` over the "same" shift range.
 
     Correlation is convolution with the template flipped in both axes, done by real
     FFTs of the full linear size rounded up to a fast length. (This replaces scipy's
     ``signal.fftconvolve``: importing ``scipy.signal`` took 0.66 s of every command's
-    start.) ``scipy.fft`` itself is imported here, on first use: it costs 0.15 s, and
-    the fast matcher that commands use never needs it.
+    start.) ``scipy.fft`` is imported on first use (:func:`_fft`).
     """
-    from scipy import fft as sp_fft
-
+    sp_fft = _fft()
     h, w = image.shape
     full = (2 * h - 1, 2 * w - 1)
     size = [sp_fft.next_fast_len(n, True) for n in full]

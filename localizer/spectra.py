@@ -10,27 +10,13 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from types import ModuleType
 
 import cv2
 import numpy as np
 
-from pipemap.localizer.similarity import sums_from_integral
+from pipemap.localizer.similarity import _fft, sums_from_integral
 
 __all__ = ["FineSpectra"]
-
-
-def _fft() -> ModuleType:
-    """``scipy.fft``, imported on first use (0.15-0.24 s of a command's start).
-
-    Not ``numpy.fft``: numpy 2.4's single-precision transforms of this matcher's
-    lengths (75 and 150: factors 3 and 5) took 5 to 7 times scipy's (a quarter-scale
-    set's rows, 437 against 66 us); issue 17, stop 30, docs/performance.md.
-    """
-    from scipy import fft
-
-    module: ModuleType = fft
-    return module
 
 
 def _fft_length(size: int) -> int:
