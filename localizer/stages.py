@@ -12,6 +12,7 @@ a clear peak, only around it. Why: :mod:`localizer.twoview`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -95,11 +96,22 @@ def _staged_matches(
     if stages == 1 or int(gate) < 3:
         return _Staged(_matches(query, known, ratio, overlap, cache=cache))
     part = np.arange(len(known)) % stages
-    found: list[tuple[np.ndarray, np.ndarray]] = []
+    first = _first_stage(
+        known,
+        lambda only: _matches(query, known, ratio, overlap, only, cache),
+        lambda found: int(
+            _coarse(query, known, found, guess_rad, config, tolerance)[0].max(initial=0)
+        ),
+        config,
+    )
+    if first is None:
+        return None
+    found: list[tuple[np.ndarray, np.ndarray]] = [first]
     count = 0
     grid: tuple[np.ndarray, np.ndarray, int] | None = None
     for stage in range(stages):
-        found.append(_matches(query, known, ratio, overlap, part == stage, cache))
+        if stage > 0:
+            found.append(_matches(query, known, ratio, overlap, part == stage, cache))
         needed = int(gate * (stage + 1))
         # More matches never lower a count: a gate the last count passes is passed.
         if stage < stages - 1 and count < needed:
@@ -113,6 +125,29 @@ def _staged_matches(
     if grid is None:
         return _Staged(_merged(known, found))
     return _Staged(_merged(known, found), *grid)
+
+
+def _first_stage(
+    known: SweepFeatures,
+    match: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+    best_count: Callable[[tuple[np.ndarray, np.ndarray]], int],
+    config: TwoViewConfig,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The first stage's matches (:func:`_merged`'s order), found in two halves with
+    the early gate of :attr:`TwoViewConfig.early_gate_share` after the first;
+    ``None`` when the first half falls short of it. The gate only gives up: the
+    matches, and every later gate, are those of one first stage. ``match`` matches
+    the known keypoints a mask marks, ``best_count`` is the coarse grid's best
+    count of some matches."""
+    stages = max(1, config.gate_every)
+    early = int(config.early_gate_share * config.min_inliers / (2 * stages))
+    part = np.arange(len(known)) % (2 * stages)
+    if early < 3:  # stops nothing (see _staged_matches): one call
+        return _merged(known, [match(part % stages == 0)])
+    half = match(part == 0)
+    if best_count(_merged(known, [half])) < early:
+        return None
+    return _merged(known, [half, match(part == stages)])
 
 
 def _coarse_start(

@@ -85,8 +85,8 @@ def test_the_second_fit_compares_only_what_the_first_did_not(
     paper_sets: dict[str, PaperSet], pairs_compared: list[int]
 ) -> None:
     """Two different junctions: the fit at a rotation and the fit at any rotation of
-    the same pair, through one cache, compare every keypoint pair of the gate's
-    quarter exactly once; without the cache, the overlap's pairs twice. Both give
+    the same pair, through one cache, compare every keypoint pair of the early
+    gate's eighth exactly once; without the cache, the overlap's pairs twice. Both give
     what the fits give alone."""
     query, known = (sweep_features(paper_sets[n].images) for n in ("1", "4"))
     config = TwoViewConfig(min_inliers=48)
@@ -94,13 +94,13 @@ def test_the_second_fit_compares_only_what_the_first_did_not(
     assert fit_two_view(query, known, config, 0.5, cache=cache) is None
     first = sum(pairs_compared)
     assert fit_two_view(query, known, config, None, cache=cache) is None
-    quarter = len(range(0, len(known), 4))
-    assert sum(pairs_compared) == quarter * len(query)
-    assert 0 < first < quarter * len(query)
+    eighth = len(range(0, len(known), 8))
+    assert sum(pairs_compared) == eighth * len(query)
+    assert 0 < first < eighth * len(query)
     pairs_compared.clear()
     assert fit_two_view(query, known, config, 0.5) is None
     assert fit_two_view(query, known, config, None) is None
-    assert sum(pairs_compared) == quarter * len(query) + first
+    assert sum(pairs_compared) == eighth * len(query) + first
 
 
 def test_a_cached_retry_finds_the_junction_a_fresh_one_does(

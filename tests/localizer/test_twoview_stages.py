@@ -1,6 +1,7 @@
 """The two-view check's speed-ups keep its answers: the Hamming matcher gives
-OpenCV's pairs, and the two-stage match (a gate on every fourth keypoint) gives the
-one-stage fit wherever it goes on, and stops early where it does not."""
+OpenCV's pairs, and the staged match (an early gate on every eighth keypoint, then
+a gate after every fourth) gives the one-stage fit wherever it goes on, and stops
+early where it does not."""
 
 from __future__ import annotations
 
@@ -124,20 +125,56 @@ def seen(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     return counts
 
 
-def test_the_gate_stops_a_different_junction_after_a_quarter(
+def test_the_early_gate_stops_a_different_junction_after_an_eighth(
     seen: list[int], features: dict[str, twoview.SweepFeatures]
 ) -> None:
-    """Different junctions: only every fourth keypoint of the known sweep is matched,
-    and the answer is the one-stage answer (no fit)."""
+    """Different junctions: only every eighth keypoint of the known sweep is matched
+    (every fourth without the early gate, every one in one stage), and the answer
+    is the one-stage answer (no fit)."""
     config = TwoViewConfig(min_inliers=48)
     for q, k in itertools.permutations(["1", "4", "10"], 2):
         seen.clear()
         assert fit_two_view(features[q], features[k], config, None) is None
-        matched = sum(seen)
-        assert matched == len(range(0, len(features[k]), 4))
+        assert sum(seen) == len(range(0, len(features[k]), 8))
+        seen.clear()
+        assert fit_two_view(features[q], features[k], replace(config, early_gate_share=0.0)) is None
+        assert sum(seen) == len(range(0, len(features[k]), 4))
         seen.clear()
         assert fit_two_view(features[q], features[k], replace(config, gate_every=1)) is None
         assert sum(seen) == len(features[k])
+
+
+@pytest.mark.parametrize("with_guess", [True, False])
+def test_the_early_gate_keeps_every_fit_it_lets_through(
+    paper_sets: dict[str, PaperSet],
+    features: dict[str, twoview.SweepFeatures],
+    with_guess: bool,
+) -> None:
+    """Same junction: the first stage matched in two halves gives the fit of one
+    first stage to the last bit, and the lamp's second fit of a pair, through the
+    match cache, too."""
+    config = TwoViewConfig(min_inliers=48)
+    without = replace(config, early_gate_share=0.0)
+    for q, k in [("1", "1_noise"), ("2_noise", "2_active"), ("3_noise", "1")]:
+        guess = _guess(paper_sets, q, k) if with_guess else None
+        fit = fit_two_view(features[q], features[k], config, guess)
+        assert fit is not None and fit == fit_two_view(features[q], features[k], without, guess)
+        cache = keymatch.MatchCache(features[q])
+        fit_two_view(features[q], features[k], config, 1.0, cache)  # a first fit elsewhere
+        assert fit_two_view(features[q], features[k], config, guess, cache) == fit
+
+
+def test_no_early_gate_below_three(
+    seen: list[int], features: dict[str, twoview.SweepFeatures]
+) -> None:
+    """The map's own junction is asked 24 inliers: an early gate of 2 (0.9 x 24 / 8)
+    would stop nothing, so the first quarter is matched in one call, and the
+    quarter's gate of 4 (0.7 x 24 / 4) is the first."""
+    fit_two_view(features["1"], features["4"], TwoViewConfig(min_inliers=24), None)
+    assert seen[0] == len(range(0, len(features["4"]), 4))
+    seen.clear()
+    fit_two_view(features["1"], features["4"], TwoViewConfig(min_inliers=27), None)
+    assert seen[0] == len(range(0, len(features["4"]), 8))  # 0.9 x 27 / 8: 3
 
 
 def test_no_gate_below_three(seen: list[int], features: dict[str, twoview.SweepFeatures]) -> None:
@@ -157,18 +194,21 @@ def test_a_first_gate_of_three_is_kept(
     assert seen[0] == len(range(0, len(features["4"]), 4))
 
 
-@pytest.mark.parametrize(("counts", "stages_run"), [([7], 1), ([8, 15], 2), ([8, 16, 24], 3)])
+@pytest.mark.parametrize(
+    ("counts", "eighths_run"), [([4], 1), ([5, 7], 2), ([5, 8, 15], 4), ([5, 8, 16, 24], 6)]
+)
 def test_each_stage_asks_for_its_share(
     monkeypatch: pytest.MonkeyPatch,
     seen: list[int],
     features: dict[str, twoview.SweepFeatures],
     counts: list[int],
-    stages_run: int,
+    eighths_run: int,
 ) -> None:
-    """After stage s of 4 the matches so far must reach 0.7 of s quarters of the
-    48 inliers on the coarse grid (8, 16, 25): the fit stops at the first stage
-    whose count falls short. Each count is one short of its gate (and passes the
-    gate of the old share, 0.5: 6, 12, 18)."""
+    """After the first eighth of the known keypoints the matches must reach 0.9 of
+    an eighth of the 48 inliers on the coarse grid (5), after stage s of 4 then 0.7
+    of s quarters (8, 16, 25): the fit stops at the first gate whose count falls
+    short. Each count is one short of its gate (and the quarters' pass the gate of
+    the old share, 0.5: 6, 12, 18)."""
     given = iter(counts)
 
     def coarse(*args: object) -> tuple[np.ndarray, np.ndarray, list[float]]:
@@ -177,14 +217,16 @@ def test_each_stage_asks_for_its_share(
     monkeypatch.setattr(stages, "_coarse", coarse)
     known = features["4"]
     assert fit_two_view(features["1"], known, TwoViewConfig(min_inliers=48)) is None
-    assert sum(seen) == sum(len(range(s, len(known), 4)) for s in range(stages_run))
+    assert sum(seen) == sum(len(range(s, len(known), 8)) for s in (0, 4, 1, 5, 2, 6)[:eighths_run])
 
 
 def test_a_count_past_every_gate_is_not_counted_again(
     monkeypatch: pytest.MonkeyPatch, features: dict[str, twoview.SweepFeatures]
 ) -> None:
     """A count never falls as matches are added: when the first quarter already
-    passes the last gate (25 of 48), the later gates cost no grid, only the fit."""
+    passes the last gate (25 of 48), the later gates cost no grid, only the fit.
+    (The early gate's count is not taken for the quarter's: the grid the fit's
+    search starts from must be the quarter's, as without the early gate.)"""
     calls: list[int] = []
     real = stages._coarse
 
@@ -195,8 +237,8 @@ def test_a_count_past_every_gate_is_not_counted_again(
     monkeypatch.setattr(stages, "_coarse", counting)
     fit = fit_two_view(features["1"], features["1_noise"], TwoViewConfig(min_inliers=48))
     assert fit is not None
-    assert len(calls) == 1  # the first quarter's gate; then the search for the fit
-    assert calls[0] < fit.matches
+    assert len(calls) == 2  # the early gate's, the first quarter's; then the search
+    assert calls[0] < calls[1] < fit.matches
 
 
 @pytest.fixture
@@ -231,11 +273,11 @@ def test_a_clear_peak_of_the_gate_is_searched_around_only(
         searched.clear()
         near = fit_two_view(features[q], features[k], local, guess)
         whole = local.rotation_steps * (2 if with_guess else 1)
-        assert searched[0] == whole  # the gate's
-        assert len(searched) == 2 and 0 < searched[1] <= 2 * (2 * local.local_steps + 1)
+        assert searched[:2] == [whole, whole]  # the early gate's and the quarter's
+        assert len(searched) == 3 and 0 < searched[2] <= 2 * (2 * local.local_steps + 1)
         searched.clear()
         assert fit_two_view(features[q], features[k], everywhere, guess) == near
-        assert searched == [whole, whole]
+        assert searched == [whole, whole, whole]
         assert near is not None and near.inliers >= 48
 
 
