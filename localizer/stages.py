@@ -115,6 +115,8 @@ def _staged_matches(
         needed = int(gate * (stage + 1))
         # More matches never lower a count: a gate the last count passes is passed.
         if stage < stages - 1 and count < needed:
+            if sum(len(f[0]) for f in found) < needed:
+                return None  # too few matches for any cell to count what it asks
             counts, rotations, _ = _coarse(
                 query, known, _merged(known, found), guess_rad, config, tolerance
             )
@@ -145,7 +147,8 @@ def _first_stage(
     if early < 3:  # stops nothing (see _staged_matches): one call
         return _merged(known, [match(part % stages == 0)])
     half = match(part == 0)
-    if best_count(_merged(known, [half])) < early:
+    # A pair counts once in a cell at most: fewer matches than the gate asks fail it.
+    if len(half[0]) < early or best_count(_merged(known, [half])) < early:
         return None
     return _merged(known, [half, match(part == stages)])
 

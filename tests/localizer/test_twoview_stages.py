@@ -164,6 +164,40 @@ def test_the_early_gate_keeps_every_fit_it_lets_through(
         assert fit_two_view(features[q], features[k], config, guess, cache) == fit
 
 
+@pytest.mark.parametrize(
+    ("early", "matched", "grids"), [(0.9, 4, 0), (0.9, 5, 1), (0.0, 7, 0), (0.0, 8, 1)]
+)
+def test_fewer_matches_than_a_gate_asks_cost_no_grid(
+    monkeypatch: pytest.MonkeyPatch,
+    features: dict[str, twoview.SweepFeatures],
+    early: float,
+    matched: int,
+    grids: int,
+) -> None:
+    """A pair of keypoints counts once in a cell of the coarse grid at most: with
+    fewer matches than a gate asks (the early gate's 5, the first quarter's 8) the
+    fit stops without counting; with as many the grid decides (here: a count of 4,
+    so it stops too)."""
+    counted: list[int] = []
+
+    def few(
+        query: object, known: object, ratio: float, overlap: object, only: np.ndarray, *rest: object
+    ) -> tuple[np.ndarray, np.ndarray]:
+        picked = np.flatnonzero(only)[:matched]
+        return picked, picked
+
+    def coarse(*args: Any) -> tuple[np.ndarray, np.ndarray, list[float]]:
+        counted.append(len(args[2][0]))
+        return np.array([[4]]), np.zeros(1), [0.0]
+
+    monkeypatch.setattr(stages, "_matches", few)
+    monkeypatch.setattr(stages, "_coarse", coarse)
+    known = features["4"]
+    config = TwoViewConfig(min_inliers=48, early_gate_share=early)
+    assert fit_two_view(features["1"], known, config) is None
+    assert counted == [matched] * grids
+
+
 def test_no_early_gate_below_three(
     seen: list[int], features: dict[str, twoview.SweepFeatures]
 ) -> None:
