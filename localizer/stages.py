@@ -3,7 +3,8 @@
 :func:`_staged_matches` matches the known sweep's keypoints a share at a time
 (:attr:`TwoViewConfig.gate_every`) and gives a pair of sweeps up as soon as the
 matches so far cannot fit one motion well enough (the gate, counted on the coarse
-grid of :func:`localizer.epipolar._grid_counts`). :func:`_coarse_start` is the
+grid of :func:`localizer.epipolar._grid_counts`; the first share is matched in two
+halves, with an early gate after the first, :func:`_first_stage`). :func:`_coarse_start` is the
 coarse search that starts the fit's refinement: on every rotation around the
 matches' azimuth peak and the guess, or, when the last gate's grid already found
 a clear peak, only around it. Why: :mod:`localizer.twoview`.
