@@ -25,20 +25,20 @@ def _words(descriptors: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.ascontiguousarray(descriptors).view(np.uint64).T)
 
 
-def _nearest_two(
-    a: np.ndarray, b: np.ndarray, words_a: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For each of descriptors ``b`` (at least one of ``a``): the index of its nearest
-    in ``a``, that distance and the second-nearest distance (``SECOND_NONE`` when
-    ``a`` has one descriptor), as ``int16``. ``words_a``, if given, is ``_words(a)``.
+def _nearest_two(words_a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each of descriptors ``b``: the index of its nearest among the descriptors
+    whose words are ``words_a`` (:func:`_words`, at least one descriptor), that
+    distance and the second-nearest distance (``SECOND_NONE`` when there is one
+    descriptor), as ``int16``.
 
     The Hamming distances are counted by numpy on the descriptors' four 64-bit words:
     1.5 to 2.5 times faster than OpenCV's brute-force ``knnMatch`` on a few hundred
-    keypoints. ``a``'s words lie word by word and two words' counts are added in
-    bytes (at most 128) before the wider sum: a quarter less time than one word at a
-    time into 16 bits, the same distances.
+    keypoints. The words lie word by word and two words' counts are added in bytes
+    (at most 128) before the wider sum: a quarter less time than one word at a time
+    into 16 bits, the same distances. Only the words are read, so a caller matching
+    a subset gathers its words, never its descriptors too.
     """
-    wa = _words(a) if words_a is None else words_a
+    wa = words_a
     wb = np.ascontiguousarray(b).view(np.uint64)
     low = np.bitwise_count(wb[:, 0, None] ^ wa[0])
     low += np.bitwise_count(wb[:, 1, None] ^ wa[1])
@@ -75,9 +75,16 @@ def _ratio_matches(
     nearest is unique wherever the test passes, so how ties are broken does not
     matter); see :func:`_nearest_two` for how the distances are counted.
     """
-    if len(a) < 2 or len(b) < 1:
+    return _word_ratio_matches(_words(a) if words_a is None else words_a, b, ratio)
+
+
+def _word_ratio_matches(
+    words_a: np.ndarray, b: np.ndarray, ratio: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_ratio_matches` of the descriptors whose words are ``words_a``."""
+    if words_a.shape[1] < 2 or len(b) < 1:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    nearest, best, second = _nearest_two(a, b, words_a)
+    nearest, best, second = _nearest_two(words_a, b)
     good = _passes(best, second, ratio)
     return nearest[good].astype(np.int64), np.flatnonzero(good).astype(np.int64)
 
@@ -142,9 +149,7 @@ class MatchCache:
             seen, known = np.zeros_like(wanted), None  # images not wanted now: anew
         in_a = np.flatnonzero((wanted & ~seen)[a.image])
         if len(in_a):
-            near, best, second = _nearest_two(
-                a.descriptors[in_a], b.descriptors[in_b], self.words_a[:, in_a]
-            )
+            near, best, second = _nearest_two(self.words_a[:, in_a], b.descriptors[in_b])
             found = (in_a[near], best, second)
             known = found if known is None else _union(known, found)
         assert known is not None
@@ -199,7 +204,7 @@ def _matches(
         member[:] = False
         member[images] = True
         in_a = np.flatnonzero(member[a.image])
-        ia, ib = _ratio_matches(a.descriptors[in_a], b.descriptors[in_b], ratio, words_a[:, in_a])
+        ia, ib = _word_ratio_matches(words_a[:, in_a], b.descriptors[in_b], ratio)
         found_a.append(in_a[ia])
         found_b.append(in_b[ib])
     return np.concatenate(found_a), np.concatenate(found_b)

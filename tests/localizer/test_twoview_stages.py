@@ -113,15 +113,13 @@ def test_two_stages_give_the_one_stage_fit(
 def seen(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """How many keypoints of the known sweep each Hamming matching took."""
     counts: list[int] = []
-    real = keymatch._ratio_matches
+    real = keymatch._word_ratio_matches
 
-    def counting(
-        a: np.ndarray, b: np.ndarray, ratio: float, words_a: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def counting(words_a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
         counts.append(len(b))
-        return real(a, b, ratio, words_a)
+        return real(words_a, b, ratio)
 
-    monkeypatch.setattr(keymatch, "_ratio_matches", counting)
+    monkeypatch.setattr(keymatch, "_word_ratio_matches", counting)
     return counts
 
 
