@@ -29,7 +29,6 @@ from pipemap.replay.source import (
     FileSource,
     MemorySource,
     MessageSource,
-    PackedLog,
     StreamSource,
     ordered,
 )
@@ -41,7 +40,6 @@ __all__ = [
     "LoggedSweep",
     "MemorySource",
     "MessageSource",
-    "PackedLog",
     "PairStatistics",
     "ReplayResult",
     "ScoreReport",

@@ -41,7 +41,7 @@ from pipemap.replay.replayer import (
 from pipemap.replay.source import ordered
 from pipemap.replay.view import MapLog, recording
 from pipemap.replay.view_blueprint import view_blueprint
-from pipemap.replay.view_topics import RobotGeometry, Trail, log_robot, log_truth
+from pipemap.replay.view_topics import Carried, RobotGeometry, log_robot, log_truth
 
 if TYPE_CHECKING:
     from multiprocessing.connection import Connection
@@ -93,7 +93,7 @@ class LiveView:
         self._geometry = RobotGeometry.from_run(run_metadata)
         self._collector = _Collector()
         self._convert = RecordConverter(self._collector)
-        self._trail = Trail()
+        self._carried = Carried()
         self._map = MapLog(rec)
         # As a replay of the log would: a lamp-lit camera's sweeps are normalised.
         lit = lamp_strength(run_metadata) > 0.0
@@ -133,8 +133,8 @@ class LiveView:
                 robot.append(m)
             if m.topic == Topic.NODE:
                 self._node_events.append(m)
-        log_robot(self.rec, by_topic, self._geometry)
-        log_truth(self.rec, by_topic, self._trail)
+        log_robot(self.rec, by_topic, self._geometry, self._carried)
+        log_truth(self.rec, by_topic, self._carried.trail)
         sweeps = sweeps_of(robot, "live run").sweeps
         for sweep in sweeps:
             self._sweeps += 1

@@ -16,8 +16,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-import numpy as np
-
 from pipemap.errors import LogFormatError
 from pipemap.recorder import (
     METADATA_RUN,
@@ -29,14 +27,12 @@ from pipemap.recorder import (
     iter_log,
     read_log,
 )
-from pipemap.recorder.reader import gc_paused
 from pipemap.recorder.topics import ROBOT_PREFIX
 
 __all__ = [
     "FileSource",
     "MemorySource",
     "MessageSource",
-    "PackedLog",
     "REQUIRED_TOPICS",
     "StreamSource",
     "ordered",
@@ -241,6 +237,11 @@ class StreamSource(_LogFile):
     def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
         return _grouped(m for m in self._pass() if m.topic.startswith(prefix))
 
+    def messages(self) -> Iterator[LogMessage]:
+        """Every kept message, one at a time in file order, none kept (a view's
+        pass; afterwards the counts, damage and integrity are final)."""
+        return self._pass()
+
 
 def _keeper(topics: Collection[str] | None) -> Callable[[str], bool]:
     """Which topics a file source keeps: ``topics``, or every ``/robot`` and
@@ -258,53 +259,6 @@ def _check_camera(path: Path, contents: LogContents) -> None:
     missing = [t for t in REQUIRED_TOPICS if t not in topics]
     if missing and contents.integrity is Integrity.OK:
         raise LogFormatError(f"{path}: no {', '.join(missing)} channel in this log")
-
-
-@dataclass(frozen=True)
-class PackedLog:
-    """A source's messages as a few arrays and one byte string, which pickle in
-    milliseconds where 84 000 message objects take a quarter of a second: how a
-    process that read the log hands it to another."""
-
-    name: str
-    metadata: dict[str, str]
-    integrity: Integrity
-    topics: tuple[str, ...]
-    topic_of: np.ndarray  # index into ``topics``, per message
-    log_times_ns: np.ndarray
-    sequences: np.ndarray
-    ends: np.ndarray  # end of each message's data in ``blob``
-    blob: bytes
-
-    @classmethod
-    def of(cls, source: MessageSource, prefixes: tuple[str, ...]) -> PackedLog:
-        """The messages of ``source`` under ``prefixes``, topic by topic in file order."""
-        messages = [m for prefix in prefixes for ms in source.by_topic(prefix).values() for m in ms]
-        topics = tuple(dict.fromkeys(m.topic for m in messages))
-        index = {t: i for i, t in enumerate(topics)}
-        count = len(messages)
-        return cls(
-            name=source.name,
-            metadata=source.run_metadata(),
-            integrity=source.integrity,
-            topics=topics,
-            topic_of=np.fromiter((index[m.topic] for m in messages), np.int32, count),
-            log_times_ns=np.fromiter((m.log_time_ns for m in messages), np.int64, count),
-            sequences=np.fromiter((m.sequence for m in messages), np.int64, count),
-            ends=np.cumsum(np.fromiter((len(m.data) for m in messages), np.int64, count)),
-            blob=b"".join(m.data for m in messages),
-        )
-
-    def source(self) -> MemorySource:
-        """The messages again, as a source."""
-        ends = self.ends.tolist()
-        blob = self.blob
-        data = [blob[a:b] for a, b in zip([0, *ends][:-1], ends, strict=True)]
-        topics = [self.topics[t] for t in self.topic_of.tolist()]
-        times, sequences = self.log_times_ns.tolist(), self.sequences.tolist()
-        with gc_paused():
-            messages = list(map(LogMessage, topics, times, sequences, data))
-        return MemorySource(messages, self.metadata, self.name, self.integrity)
 
 
 def _grouped(messages: Iterable[LogMessage]) -> dict[str, list[LogMessage]]:

@@ -19,26 +19,30 @@ rerun is imported inside the functions, so importing this module is cheap.
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import uuid
-from collections.abc import Callable
+from collections import defaultdict
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pipemap.errors import InputError, ViewerError
 from pipemap.localizer import TopoMap
+from pipemap.recorder.reader import LogMessage
 from pipemap.recorder.topics import ROBOT_PREFIX
 from pipemap.replay.replayer import ReplayResult, VisitDecision, visit_label
-from pipemap.replay.source import MessageSource
+from pipemap.replay.source import MessageSource, StreamSource
 from pipemap.replay.view_blueprint import view_blueprint
-from pipemap.replay.view_topics import RobotGeometry, log_robot, log_truth, set_time
+from pipemap.replay.view_topics import Carried, RobotGeometry, log_robot, log_truth, set_time
 
 if TYPE_CHECKING:
     import rerun as rr
 
 __all__ = [
     "APPLICATION_ID",
+    "VIEW_WINDOW",
     "MapLog",
     "Replayed",
     "describe_decision",
@@ -180,15 +184,38 @@ def _log_map(rec: rr.RecordingStream, result: ReplayResult) -> None:
 Replayed = ReplayResult | Callable[[], ReplayResult]
 
 
+#: Messages a view hands to rerun at a time: a log is read and logged in windows
+#: of this many, so a view holds a window, not the log (a 100-junction run's log
+#: is 1.4 million messages).
+VIEW_WINDOW = 50_000
+
+
+def _viewed(source: MessageSource) -> Iterator[LogMessage]:
+    """The ``/robot`` and ``/truth`` messages of ``source``: as a
+    :class:`StreamSource` reads them, one pass in file order; else topic by topic."""
+    if isinstance(source, StreamSource):
+        return (m for m in source.messages() if m.topic.startswith((ROBOT_PREFIX, "/truth/")))
+    return (m for p in (ROBOT_PREFIX, "/truth/") for ms in source.by_topic(p).values() for m in ms)
+
+
 def log_view(rec: rr.RecordingStream, source: MessageSource, result: Replayed) -> None:
     """Log everything a view shows of ``source`` and its replay ``result`` to ``rec``.
 
-    The log's own streams go first; ``result``, if a function, is called only then,
-    so a replay running in another process overlaps them.
+    The log's own streams go first, :data:`VIEW_WINDOW` messages at a time (what
+    one window leaves for the next carried over, as the live view does: the
+    recording is the one a single window would make, chunked otherwise);
+    ``result``, if a function, is called only then, so a replay running in another
+    process overlaps them.
     """
     geometry = RobotGeometry.from_run(source.run_metadata())
-    log_robot(rec, source.by_topic(ROBOT_PREFIX), geometry)
-    log_truth(rec, source.by_topic("/truth/"))
+    carried = Carried()
+    messages = _viewed(source)
+    while window := list(itertools.islice(messages, VIEW_WINDOW)):
+        by_topic: dict[str, list[LogMessage]] = defaultdict(list)
+        for m in window:
+            by_topic[m.topic].append(m)
+        log_robot(rec, by_topic, geometry, carried)
+        log_truth(rec, by_topic, carried.trail)
     _log_map(rec, result if isinstance(result, ReplayResult) else result())
 
 

@@ -13,7 +13,7 @@ import json
 import math
 import operator
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -42,6 +42,7 @@ __all__ = [
     "TIMELINE",
     "TRAIL_ENTITY",
     "TRAIL_PIECE_POINTS",
+    "Carried",
     "RobotGeometry",
     "Trail",
     "log_robot",
@@ -149,8 +150,32 @@ def _all_decoded(message_type: Any, messages: list[LogMessage]) -> list[tuple[Lo
     return [(m, d) for m, d in pairs if d is not None]
 
 
+@dataclass
+class Carried:
+    """What a view logged in pieces (a log a window at a time, a live run a sweep at
+    a time) carries from one piece to the next, so that the pieces log what the
+    whole would: the entities whose static style is logged (once), the controller's
+    last state (its text is logged where it changes) and the trajectory."""
+
+    styled: set[str] = field(default_factory=set)
+    controller_state: str | None = None
+    trail: Trail = field(default_factory=lambda: Trail())
+
+
+def _static(rec: rr.RecordingStream, entity: str, value: Any, carried: Carried) -> None:
+    """Log ``value`` to ``entity`` as static, unless an earlier piece did."""
+    if entity not in carried.styled:
+        carried.styled.add(entity)
+        rec.log(entity, value, static=True)
+
+
 def _series(
-    rec: rr.RecordingStream, entity: str, times: np.ndarray, columns: Columns, *names: str
+    rec: rr.RecordingStream,
+    carried: Carried,
+    entity: str,
+    times: np.ndarray,
+    columns: Columns,
+    *names: str,
 ) -> None:
     """The fields ``names`` as the series of one time-series entity, named after them."""
     import rerun as rr
@@ -158,7 +183,7 @@ def _series(
     values = np.stack([columns[name].astype(np.float64) for name in names], axis=1)
     data = rr.Scalars.columns(scalars=values.reshape(-1)).partition([len(names)] * len(times))
     rec.send_columns(entity, indexes=[time_column(times)], columns=data)
-    rec.log(entity, rr.SeriesLines(names=list(names)), static=True)
+    _static(rec, entity, rr.SeriesLines(names=list(names)), carried)
 
 
 def log_truth(
@@ -266,7 +291,7 @@ class Trail:
 
 
 def _log_ranges(
-    rec: rr.RecordingStream, messages: list[LogMessage], geometry: RobotGeometry
+    rec: rr.RecordingStream, messages: list[LogMessage], geometry: RobotGeometry, carried: Carried
 ) -> None:
     import rerun as rr
 
@@ -274,7 +299,7 @@ def _log_ranges(
         return
     names = ("front_m", "front_left_m", "front_right_m")
     times, c = _columns(messages, Ranges, *names)
-    _series(rec, "sensors/tof/range_m", times, c, *names)
+    _series(rec, carried, "sensors/tof/range_m", times, c, *names)
     values = np.stack([c[name] for name in names], axis=1)
     angles = np.asarray(geometry.tof_angles_rad[:3], dtype=np.float64)
     directions = np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
@@ -285,37 +310,44 @@ def _log_ranges(
         indexes=[time_column(times)],
         columns=rr.Arrows3D.columns(vectors=vectors).partition([3] * len(times)),
     )
-    rec.log(
+    _static(
+        rec,
         "world/robot/tof",
         rr.Arrows3D.from_fields(origins=[origin] * 3, colors=_RAY_COLORS, radii=0.002),
-        static=True,
+        carried,
     )
 
 
-def _log_body(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) -> None:
+def _log_body(
+    rec: rr.RecordingStream, messages: dict[str, list[LogMessage]], carried: Carried
+) -> None:
     imu, wheels = messages.get(Topic.IMU), messages.get(Topic.WHEELS)
     if imu:
         accel = ("accel_forward_mps2", "accel_left_mps2")
         times, c = _columns(imu, Imu, "yaw_rate_rps", *accel)
-        _series(rec, "sensors/imu/yaw_rate_rps", times, c, "yaw_rate_rps")
-        _series(rec, "sensors/imu/accel_mps2", times, c, *accel)
+        _series(rec, carried, "sensors/imu/yaw_rate_rps", times, c, "yaw_rate_rps")
+        _series(rec, carried, "sensors/imu/accel_mps2", times, c, *accel)
     if wheels:
         ticks = ("left_ticks", "right_ticks")
         times, c = _columns(wheels, WheelEncoders, *ticks)
-        _series(rec, "sensors/wheels/ticks", times, c, *ticks)
+        _series(rec, carried, "sensors/wheels/ticks", times, c, *ticks)
 
 
-def _log_controller(rec: rr.RecordingStream, messages: list[LogMessage]) -> None:
+def _log_controller(rec: rr.RecordingStream, messages: list[LogMessage], carried: Carried) -> None:
     import rerun as rr
 
     if not messages:
         return
     times, c = _columns(messages, ControllerState, "state", "linear_mps", "angular_rps")
-    _series(rec, "controller/linear_mps", times, c, "linear_mps")
-    _series(rec, "controller/angular_rps", times, c, "angular_rps")
+    _series(rec, carried, "controller/linear_mps", times, c, "linear_mps")
+    _series(rec, carried, "controller/angular_rps", times, c, "angular_rps")
     # The state as text each time it changes: a line per control step would drown the log.
     changes = c.changes("state")
-    texts = [f"controller: {state}" for state in c.strings("state", changes)]
+    states = c.strings("state", changes)
+    if states and states[0] == carried.controller_state:  # no change from the last piece
+        changes, states = changes[1:], states[1:]
+    carried.controller_state = c.strings("state", np.array([len(times) - 1]))[0]
+    texts = [f"controller: {state}" for state in states]
     rec.send_columns(
         "log/controller",
         indexes=[time_column(times[changes])],
@@ -324,7 +356,10 @@ def _log_controller(rec: rr.RecordingStream, messages: list[LogMessage]) -> None
 
 
 def _log_camera(
-    rec: rr.RecordingStream, messages: dict[str, list[LogMessage]], geometry: RobotGeometry
+    rec: rr.RecordingStream,
+    messages: dict[str, list[LogMessage]],
+    geometry: RobotGeometry,
+    carried: Carried,
 ) -> None:
     import rerun as rr
 
@@ -356,7 +391,7 @@ def _log_camera(
     )
     origin = (0.0, 0.0, geometry.camera_height_m)
     style = rr.Arrows3D.from_fields(origins=[origin], colors=(255, 220, 0), radii=0.004)
-    rec.log("world/robot/camera", style, static=True)
+    _static(rec, "world/robot/camera", style, carried)
 
 
 def _log_events(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) -> None:
@@ -384,18 +419,24 @@ def _log_events(rec: rr.RecordingStream, messages: dict[str, list[LogMessage]]) 
 
 
 def log_robot(
-    rec: rr.RecordingStream, messages: dict[str, list[LogMessage]], geometry: RobotGeometry
+    rec: rr.RecordingStream,
+    messages: dict[str, list[LogMessage]],
+    geometry: RobotGeometry,
+    carried: Carried | None = None,
 ) -> None:
-    """Every ``/robot`` stream: range rays and values, IMU, wheels, controller, camera."""
+    """Every ``/robot`` stream: range rays and values, IMU, wheels, controller, camera
+    (of one piece of a view logged in pieces, given what the pieces before left in
+    ``carried``)."""
     import rerun as rr
 
+    carried = carried if carried is not None else Carried()
     half = (geometry.length_m / 2, geometry.width_m / 2, geometry.tof_height_m / 2)
     body = rr.Boxes3D(half_sizes=[half], centers=[(0.0, 0.0, half[2])], colors=(200, 200, 200))
-    rec.log("world/robot/body", body, static=True)
+    _static(rec, "world/robot/body", body, carried)
     # The images first: rerun encodes and writes them in its own threads while the
     # other streams are decoded here.
-    _log_camera(rec, messages, geometry)
-    _log_ranges(rec, messages.get(Topic.RANGES, []), geometry)
-    _log_body(rec, messages)
-    _log_controller(rec, messages.get(Topic.CONTROLLER, []))
+    _log_camera(rec, messages, geometry, carried)
+    _log_ranges(rec, messages.get(Topic.RANGES, []), geometry, carried)
+    _log_body(rec, messages, carried)
+    _log_controller(rec, messages.get(Topic.CONTROLLER, []), carried)
     _log_events(rec, messages)

@@ -8,11 +8,11 @@ only with ``--force``.
 
 rerun is imported only here (by :mod:`replay.view`), so other commands do not pay
 for it. Its import takes 0.25-0.35 s. Where the system can fork, a child process
-reads the log, hands it over as a :class:`replay.PackedLog` (in an unnamed file, so
-it need not wait for this process) and replays it, on the other core, while this
-process imports rerun; this one then logs the streams, and the child's decisions
-last. The recording is the same either way. (Importing rerun in a thread saved
-nothing: the import holds the GIL.)
+replays the log, on the other core, while this process imports rerun and then
+reads the log's streams and logs them a window at a time; the child's decisions
+come last. Each process reads the file as it goes, so neither holds the log (a
+100-junction run's is 1.4 million messages). The recording is the same either way.
+(Importing rerun in a thread saved nothing: the import holds the GIL.)
 """
 
 from __future__ import annotations
@@ -23,19 +23,18 @@ import os
 import pickle
 import socket
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 from urllib.parse import urlsplit
 
 from pipemap.cli.outputs import output_file
-from pipemap.cli.replay_commands import localizer_config, open_source, progress_printer
+from pipemap.cli.replay_commands import localizer_config, progress_printer, report_damage
 from pipemap.errors import InputError, ViewerError
 
 if TYPE_CHECKING:
     from pipemap.localizer import LocalizerConfig
-    from pipemap.replay import MessageSource, PackedLog, ReplayResult
+    from pipemap.replay import MessageSource, ReplayResult
     from pipemap.replay.live import LiveSummary, LiveView, LiveViewProcess
     from pipemap.replay.view import Replayed
 
@@ -159,14 +158,11 @@ def _show(source: MessageSource, result: Replayed, target: Path | None) -> None:
 
 
 class _Child:
-    """A forked process that reads the log, hands it over, then replays it.
+    """A forked process that replays the log and sends back the result.
 
-    The log goes over as a pickled :class:`PackedLog` in an unnamed temporary
-    file, and a pipe says when it is there (or sends the error that reading it
-    raised); then the pipe carries the replay's result without the image sets (or
-    its error). Meanwhile the parent imports rerun and logs the streams. Through
-    the pipe alone, the child would wait with the log half written until the
-    parent had imported rerun: 0.25 s of replay lost.
+    The pipe carries the replay's result without the image sets (or its error).
+    Meanwhile the parent imports rerun and reads and logs the log's streams itself:
+    each process reads the file as it goes, and neither holds the log.
     """
 
     def __init__(
@@ -174,15 +170,13 @@ class _Child:
         open_log: Callable[[], MessageSource],
         config: Callable[[], LocalizerConfig],
         err: TextIO,
-        spool: IO[bytes],
     ) -> None:
         err.flush()
-        self._spool = spool
         read_end, write_end = os.pipe()
         self._pid = os.fork()
         if self._pid == 0:
             os.close(read_end)
-            self._run(open_log, config, err, write_end, self._spool)  # never returns
+            self._run(open_log, config, err, write_end)  # never returns
         os.close(write_end)
         self._pipe = os.fdopen(read_end, "rb")
         self._done = False
@@ -194,21 +188,15 @@ class _Child:
         config: Callable[[], LocalizerConfig],
         err: TextIO,
         write_end: int,
-        spool: IO[bytes],
     ) -> None:
         status = 1
         try:
             with os.fdopen(write_end, "wb") as pipe:
                 try:
-                    from pipemap.replay import PackedLog, replay
+                    from pipemap.replay import replay
 
-                    source = open_log()
-                    pickle.dump(PackedLog.of(source, _VIEWED), spool, protocol=_PROTOCOL)
-                    spool.flush()
-                    pickle.dump(_SPOOLED, pipe, protocol=_PROTOCOL)
-                    pipe.flush()
                     done = replay(
-                        source,
+                        open_log(),
                         config(),
                         progress_printer(err),
                         keep_sets=False,
@@ -225,30 +213,18 @@ class _Child:
         finally:
             os._exit(status)
 
-    def _next(self) -> Any:
-        try:
-            payload = pickle.load(self._pipe)
-        except (EOFError, pickle.UnpicklingError):
-            self.close()
-            raise ViewerError("the replay process ended without a result") from None
-        if isinstance(payload, BaseException):
-            self.close()
-            raise payload
-        return payload
-
-    def log(self) -> MessageSource:
-        """The log, as the child read it."""
-        self._next()  # _SPOOLED, or the error that reading the log raised
-        self._spool.seek(0)
-        packed: PackedLog = pickle.load(self._spool)
-        self._spool.close()
-        return packed.source()
-
     def result(self) -> ReplayResult:
         """The replay's result, once the child has it."""
         if self._result is None:
-            self._result = self._next()
+            try:
+                payload = pickle.load(self._pipe)
+            except (EOFError, pickle.UnpicklingError):
+                self.close()
+                raise ViewerError("the replay process ended without a result") from None
             self.close()
+            if isinstance(payload, BaseException):
+                raise payload
+            self._result = payload
         return self._result
 
     def close(self) -> None:
@@ -256,68 +232,63 @@ class _Child:
         if not self._done:
             self._done = True
             self._pipe.close()
-            self._spool.close()
             os.waitpid(self._pid, 0)
 
 
-#: What a view shows of a log, the pickle protocol that carries it, and what the
-#: child sends down the pipe once the log is in the temporary file.
-_VIEWED = ("/robot/", "/truth/")
+#: The pickle protocol that carries the replay's result.
 _PROTOCOL = pickle.HIGHEST_PROTOCOL
-_SPOOLED = "log spooled"
 
 
-def _spool() -> IO[bytes] | None:
-    """An unnamed file for the child to hand the log over in; ``None`` where the
-    system cannot fork, or no such file can be made (the view then runs in this
-    process alone)."""
-    if not hasattr(os, "fork"):
-        return None
-    try:
-        if hasattr(os, "memfd_create"):  # Linux: in memory, no folder needed
-            return os.fdopen(os.memfd_create("pipemap-view-log"), "w+b")
-        return tempfile.TemporaryFile()
-    except OSError:
-        return None
+def _can_fork() -> bool:
+    """Whether the replay can run in a forked child (else one process does it all)."""
+    return hasattr(os, "fork")
 
 
 def _view(
-    open_log: Callable[[], MessageSource],
+    log: Path,
     config: Callable[[], LocalizerConfig],
     target: Path | None,
-    name: str,
     out: TextIO,
     err: TextIO,
 ) -> None:
-    """Read and replay the log beside the view's own work, then show or save the view.
+    """Replay the log beside the view's own work, then show or save the view.
 
-    Where the system can fork, a child reads and replays the log while this process
-    imports rerun; this one then logs the streams, and the decisions last. Elsewhere
-    one process does it all, in that order.
+    The log is opened (and refused if it is not one) before any work. Where the
+    system can fork, a child replays it while this process imports rerun and logs
+    the streams as it reads them, and the decisions last; elsewhere one process
+    does it all, in that order. Each reads the file as it goes.
     """
-    spool = _spool()
-    if spool is None:
+    from pipemap.replay import REPLAY_TOPICS, StreamSource
+
+    viewed = StreamSource(log)  # a missing, empty or foreign file: refused here
+
+    def open_log() -> MessageSource:
+        return StreamSource(log, REPLAY_TOPICS)
+
+    if not _can_fork():
         from pipemap.replay import replay
 
-        source = open_log()
-        done = replay(source, config(), progress_printer(err), keep_sets=False, keep_prepared=False)
-        _show(source, done, target)
+        done = replay(
+            open_log(), config(), progress_printer(err), keep_sets=False, keep_prepared=False
+        )
+        _show(viewed, done, target)
     else:
-        child = _Child(open_log, config, err, spool)
+        child = _Child(open_log, config, err)
         try:
-            # Imported here while the child reads the log, not after.
+            # Imported here while the child replays, not after.
             import rerun  # noqa: F401
 
             from pipemap.replay import view  # noqa: F401
 
-            _show(child.log(), child.result, target)
+            _show(viewed, child.result, target)
             done = child.result()
         finally:
             child.close()
+    report_damage(str(log), viewed.contents, err)
     for warning in done.warnings:
         err.write(f"pipemap: note: {warning}\n")
     where = "sent to the rerun viewer" if target is None else f"written to {target}"
-    out.write(f"viewed {_summary(name, done)}, {where}\n")
+    out.write(f"viewed {_summary(str(log), done)}, {where}\n")
 
 
 def view_recorded(
@@ -325,16 +296,8 @@ def view_recorded(
 ) -> None:
     """Right after ``pipemap record --view``: replay the new log and show or save it."""
     from pipemap.localizer import LocalizerConfig
-    from pipemap.replay import FileSource
 
-    _view(
-        lambda: FileSource(log),
-        lambda: LocalizerConfig(threshold=threshold),
-        target,
-        str(log),
-        out,
-        err,
-    )
+    _view(log, lambda: LocalizerConfig(threshold=threshold), target, out, err)
 
 
 def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -342,12 +305,5 @@ def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
     target = _target(args)
     if target is None:
         _check_display()
-    _view(
-        lambda: open_source(args, err),
-        lambda: localizer_config(args),
-        target,
-        args.log,
-        out,
-        err,
-    )
+    _view(Path(args.log), lambda: localizer_config(args), target, out, err)
     return 0

@@ -21,7 +21,8 @@ import pytest
 from pipemap.cli import main, view_command
 from pipemap.recorder import Topic, read_log
 from pipemap.recorder.schemas import CompressedImage, Ranges
-from pipemap.replay import FileSource, replay
+from pipemap.replay import FileSource, StreamSource, replay
+from pipemap.replay import view as view_module
 from pipemap.replay.view import save_view
 from tests.logs import rerun_cli
 
@@ -189,10 +190,10 @@ def test_two_saves_of_one_log_compare_equal(
 def test_the_command_replaying_in_a_child_process_saves_what_one_process_saves(
     recorded_run: Path, saved: Path, tmp_path: Path
 ) -> None:
-    # `pipemap view` replays in a forked child while it logs the streams itself.
-    source = FileSource(recorded_run)
+    # `pipemap view` replays in a forked child while it reads and logs the streams
+    # itself, as they come from the file.
     alone = tmp_path / "alone.rrd"
-    save_view(source, replay(source), alone)
+    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), alone)
     compared = rerun_cli("rrd", "compare", "--unordered", str(saved), str(alone))
     assert compared.returncode == 0, compared.stderr + compared.stdout
 
@@ -204,8 +205,8 @@ def test_the_command_without_a_child_process_saves_the_same(
     monkeypatch: pytest.MonkeyPatch,
     capfd: pytest.CaptureFixture[str],
 ) -> None:
-    # Where no file for the handover can be made (or no fork), one process does it all.
-    monkeypatch.setattr(view_command, "_spool", lambda: None)
+    # Where the system cannot fork, one process does it all.
+    monkeypatch.setattr(view_command, "_can_fork", lambda: False)
     alone = tmp_path / "alone.rrd"
     status, out, err = run(["view", str(recorded_run), "--save", str(alone)], capfd)
     assert status == 0, err
@@ -328,3 +329,47 @@ def test_record_view_is_checked_before_the_run(
     assert len(stderr.splitlines()) == 1 and expected in stderr
     assert not log.exists()  # refused before the run: no log written
     assert (tmp_path / "run.rrd").read_bytes() == b"keep me"
+
+
+def recorded_rows(path: Path) -> dict[str, list[str]]:
+    """Every row of the recording by entity, as text, in order: the data without how
+    rerun cut it into chunks (which differs with how it was sent) or its row ids.
+    Static rows are what an entity's last static write left."""
+    import json
+
+    timed: dict[str, list[str]] = defaultdict(list)
+    static: dict[str, str] = {}
+    for entity, chunks in read_chunks(path).items():
+        for chunk in chunks:
+            batch = chunk.to_record_batch()
+            names = [n for n in batch.schema.names if n != "rerun.controls.RowId"]
+            values = {
+                n: batch.column(n).cast("int64").to_pylist()
+                if n == "sim_time"
+                else batch.column(n).to_pylist()
+                for n in names
+            }
+            for row in range(batch.num_rows):
+                text = json.dumps({n: values[n][row] for n in names}, sort_keys=True)
+                if chunk.is_static:
+                    static[f"{entity} {sorted(names)}"] = text
+                else:
+                    timed[entity].append(text)
+    rows = {e: sorted(texts) for e, texts in timed.items()}
+    rows.update({f"static {key}": [text] for key, text in static.items()})
+    return rows
+
+
+@pytest.mark.parametrize("window", [997, 10**9])
+def test_a_log_viewed_a_window_at_a_time_is_the_whole_log_viewed(
+    recorded_run: Path, saved: Path, tmp_path: Path, window: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``pipemap view`` reads and logs a log a window of messages at a time (the
+    run's log: about 80 000 messages, two windows by default): in windows of 997
+    (each carrying the trajectory, the styles logged and the controller's state to
+    the next) or in one, the same rows. (``rerun rrd compare`` compares chunks,
+    and the windows cut the images and series into other chunks.)"""
+    monkeypatch.setattr(view_module, "VIEW_WINDOW", window)
+    again = tmp_path / f"window-{window}.rrd"
+    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), again)
+    assert recorded_rows(again) == recorded_rows(saved)
