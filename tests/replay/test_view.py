@@ -370,6 +370,37 @@ def test_a_log_viewed_a_window_at_a_time_is_the_whole_log_viewed(
     the next) or in one, the same rows. (``rerun rrd compare`` compares chunks,
     and the windows cut the images and series into other chunks.)"""
     monkeypatch.setattr(view_module, "VIEW_WINDOW", window)
+    windows: list[int] = []
+    real = view_module.log_robot
+
+    def counting(rec: Any, messages: dict[str, list[Any]], *args: Any) -> None:
+        windows.append(sum(map(len, messages.values())))
+        real(rec, messages, *args)
+
+    monkeypatch.setattr(view_module, "log_robot", counting)
     again = tmp_path / f"window-{window}.rrd"
     save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), again)
     assert recorded_rows(again) == recorded_rows(saved)
+    viewed = sum(read_log(recorded_run).counts.values())
+    assert len(windows) == -(-viewed // window)  # a window of messages at a time
+
+
+def test_the_command_never_reads_the_log_whole(
+    recorded_run: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    """``pipemap view`` reads the file as it goes, for the replay and for the view
+    (here in one process): the reader that holds a whole log is never called."""
+    from pipemap.replay import source as source_module
+
+    def whole(*args: Any, **kwargs: Any) -> None:
+        raise AssertionError("the log was read whole")
+
+    monkeypatch.setattr(source_module, "read_log", whole)
+    monkeypatch.setattr(view_command, "_can_fork", lambda: False)
+    out = tmp_path / "streamed.rrd"
+    status, _, err = run(["view", str(recorded_run), "--save", str(out)], capfd)
+    assert status == 0, err
+    assert out.exists()
