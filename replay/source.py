@@ -89,6 +89,11 @@ class MessageSource(Protocol):
         (for viewing, which orders each topic by time itself)."""
         ...
 
+    def every_message(self) -> Iterator[LogMessage]:
+        """Every message the source keeps, one at a time in file order (a view's
+        pass: a file read as it goes is not held)."""
+        ...
+
 
 @dataclass
 class MemorySource:
@@ -113,6 +118,9 @@ class MemorySource:
 
     def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
         return _grouped(m for m in self.messages if m.topic.startswith(prefix))
+
+    def every_message(self) -> Iterator[LogMessage]:
+        return iter(self.messages)
 
     @property
     def duration_ns(self) -> int:
@@ -188,6 +196,9 @@ class FileSource(_LogFile):
     def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
         return {t: list(ms) for t, ms in self._topics.items() if t.startswith(prefix)}
 
+    def every_message(self) -> Iterator[LogMessage]:
+        return iter(self._contents.messages)
+
 
 class StreamSource(_LogFile):
     """A log file read as a replay goes: each message is handed out once and not
@@ -237,9 +248,9 @@ class StreamSource(_LogFile):
     def by_topic(self, prefix: str) -> dict[str, list[LogMessage]]:
         return _grouped(m for m in self._pass() if m.topic.startswith(prefix))
 
-    def messages(self) -> Iterator[LogMessage]:
-        """Every kept message, one at a time in file order, none kept (a view's
-        pass; afterwards the counts, damage and integrity are final)."""
+    def every_message(self) -> Iterator[LogMessage]:
+        """Every kept message, one at a time in file order, none kept (afterwards
+        the counts, damage and integrity are final)."""
         return self._pass()
 
 

@@ -33,7 +33,7 @@ from pipemap.localizer import TopoMap
 from pipemap.recorder.reader import LogMessage
 from pipemap.recorder.topics import ROBOT_PREFIX
 from pipemap.replay.replayer import ReplayResult, VisitDecision, visit_label
-from pipemap.replay.source import MessageSource, StreamSource
+from pipemap.replay.source import MessageSource
 from pipemap.replay.view_blueprint import view_blueprint
 from pipemap.replay.view_topics import Carried, RobotGeometry, log_robot, log_truth, set_time
 
@@ -191,11 +191,8 @@ VIEW_WINDOW = 50_000
 
 
 def _viewed(source: MessageSource) -> Iterator[LogMessage]:
-    """The ``/robot`` and ``/truth`` messages of ``source``: as a
-    :class:`StreamSource` reads them, one pass in file order; else topic by topic."""
-    if isinstance(source, StreamSource):
-        return (m for m in source.messages() if m.topic.startswith((ROBOT_PREFIX, "/truth/")))
-    return (m for p in (ROBOT_PREFIX, "/truth/") for ms in source.by_topic(p).values() for m in ms)
+    """The ``/robot`` and ``/truth`` messages of ``source``, in file order."""
+    return (m for m in source.every_message() if m.topic.startswith((ROBOT_PREFIX, "/truth/")))
 
 
 def log_view(rec: rr.RecordingStream, source: MessageSource, result: Replayed) -> None:
