@@ -383,6 +383,18 @@ def test_a_log_viewed_a_window_at_a_time_is_the_whole_log_viewed(
     assert recorded_rows(again) == recorded_rows(saved)
     viewed = sum(read_log(recorded_run).counts.values())
     assert len(windows) == -(-viewed // window)  # a window of messages at a time
+    # A style is logged once, not once a window.
+    body = [c for c in read_chunks(again)["/world/robot/body"] if c.is_static]
+    assert sum(c.num_rows for c in body) == 1
+
+
+def test_every_source_gives_the_log_in_file_order(recorded_run: Path) -> None:
+    """A view reads any source in the same windows: a file read whole and a file read
+    as it goes hand out the same messages in the same (file) order."""
+    whole = list(FileSource(recorded_run).every_message())
+    assert len(whole) > 1000
+    assert list(StreamSource(recorded_run).every_message()) == whole
+    assert [m.topic for m in whole] != sorted(m.topic for m in whole)  # not by topic
 
 
 def test_the_command_never_reads_the_log_whole(
