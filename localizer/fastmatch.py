@@ -82,6 +82,9 @@ class FastMatcher:
         self._inv_window_norm: np.ndarray | None = None  # (D, N*M, Wc)
         #: Refinement spectra of the last few refined known sets, rebuilt on demand.
         self._fine_cache: OrderedDict[int, PreparedSet] = OrderedDict()
+        # scipy.fft is imported here, not at the first sweep: a robot's first decision
+        # would otherwise wait 0.2-0.3 s for it (the import's cost, on this machine).
+        _fft()
 
     def __len__(self) -> int:
         return len(self._sets)

@@ -192,8 +192,9 @@ def sums_from_integral(integral: np.ndarray, dys: np.ndarray, dxs: np.ndarray) -
 
 
 def _fft() -> ModuleType:
-    """``scipy.fft``, imported on first use (0.15-0.24 s of a command's start, and 28
-    MB resident): the reference and the fast matcher both transform with it.
+    """``scipy.fft``, imported on first use (0.15-0.3 s, and 28 MB resident): the
+    reference and the fast matcher both transform with it. A :class:`FastMatcher`
+    loads it when made, so a run's first decision does not wait for it.
 
     Not ``numpy.fft``: numpy 2.4's single-precision transforms of the fast matcher's
     lengths (75 and 150: factors 3 and 5) took 5 to 7 times scipy's (a quarter-scale

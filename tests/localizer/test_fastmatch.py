@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 
 import cv2
 import numpy as np
@@ -302,3 +304,20 @@ def test_the_screening_images_are_opencvs_area_means(
     assert got.dtype == np.float64 and got.shape == expected.shape
     np.testing.assert_allclose(got, expected, rtol=0.0, atol=1e-4)
     np.testing.assert_allclose(_area_weights(h, size[1]).sum(axis=1), 1.0, rtol=1e-12)
+
+
+def test_the_fft_module_is_loaded_with_the_matcher_not_at_the_first_sweep() -> None:
+    """Importing scipy.fft took 0.2-0.3 s here; paid at the first sweep, it was a robot's
+    first decision's latency (and a tenth of a 13-decision log's mean in ``pipemap
+    score``). Importing the localizer still does not load it (commands that never
+    match start quickly); making a matcher does."""
+    probe = (
+        "import sys\n"
+        "from pipemap.localizer.fastmatch import FastMatcher\n"
+        "before = 'scipy.fft' in sys.modules\n"
+        "FastMatcher()\n"
+        "print(before, 'scipy.fft' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["False", "True"]
