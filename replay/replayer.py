@@ -86,6 +86,14 @@ _PROBE_MATCH = 1e-9
 _PROBE_TURN_MATCH_RAD = 1e-3
 
 
+def _makes_probes(metadata: dict[str, str] | None) -> bool:
+    """Whether the run's robot makes the probe moves active vision asks for: only in
+    the ``active`` placement condition (``recorder.session``); a log that does not
+    name its condition is taken to, so a missing probe is reported as missing."""
+    condition = None if metadata is None else metadata.get("condition")
+    return condition is None or condition == "active"
+
+
 @dataclass(frozen=True)
 class VisitDecision:
     """The replay's decision for one node visit."""
@@ -96,7 +104,8 @@ class VisitDecision:
     decision: Decision
     #: Wall time of the decision (not part of any deterministic output).
     latency_s: float
-    #: Probes the localizer asked for that the log does not hold.
+    #: Probes the localizer asked for that the log does not hold, though the robot
+    #: makes probe moves (its condition is ``active``, or the log does not say).
     probes_not_in_log: int
     #: The visit's exit scan and departure (robot data), if the log has them.
     exits: LoggedExits | None = None
@@ -214,6 +223,8 @@ class _Replay:
         self.events = NodeEvents(source.name)
         self.localizer: Localizer | None = None
         self.metadata: dict[str, str] | None = None
+        #: Probes asked for where the robot makes none (not a gap in the log).
+        self.probes_not_made = 0
         self.pending: deque[LoggedSweep] = deque()  # visit sweeps not decided yet
         self.probes: dict[int, list[LoggedSweep]] = {}
         self.decided: list[VisitDecision] = []
@@ -286,6 +297,10 @@ class _Replay:
         start = time.perf_counter()
         decision = localizer.localize(images, answers, exits, odometer)
         latency = time.perf_counter() - start
+        missing = answers.not_in_log
+        if not _makes_probes(self.metadata):
+            self.probes_not_made += missing
+            missing = 0
         if self.keep_prepared and localizer.last_prepared is not None:
             self.visit_prepared[sweep.sweep_id] = for_pairs(localizer.last_prepared)
         for given_up in () if scan is None else scan.blocked_rad:
@@ -300,7 +315,7 @@ class _Replay:
                 sweep.end_ns,
                 decision,
                 latency,
-                answers.not_in_log,
+                missing,
                 scan,
             )
         )
@@ -317,6 +332,13 @@ class _Replay:
             warnings.append(
                 f"{asked} probe sweep(s) asked for are not in the log; those visits were "
                 "decided without them"
+            )
+        if self.probes_not_made:
+            condition = (self.metadata or {}).get("condition")
+            warnings.append(
+                f"active vision asked for {self.probes_not_made} probe sweep(s); in condition "
+                f"{condition!r} the robot makes no probe moves, so those visits were decided "
+                "on their own sweeps, as online"
             )
         if not self.decided:
             warnings.append(f"{name}: no complete sweep of a visit in this log; an empty map")

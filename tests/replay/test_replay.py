@@ -20,6 +20,8 @@ from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay import FileSource, LoggedSweep, replay
 from pipemap.replay import replayer as replayer_module
 
+RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
+
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
@@ -348,3 +350,34 @@ def test_the_latency_clock_times_the_decision_not_unpacking_the_images(
         if event == "clock":
             timing = not timing
         assert not (timing and event == "set"), "a set was made while the clock ran"
+
+
+@pytest.mark.parametrize(
+    ("condition", "makes_probes"), [("autonomous", False), ("active", True), (None, True)]
+)
+def test_a_missing_probe_is_a_gap_only_where_the_robot_makes_probe_moves(
+    condition: str | None, makes_probes: bool
+) -> None:
+    """At a threshold of 0.6 the stored autonomous run's matches are weak and active
+    vision asks for probes. Its robot makes none (only the ``active`` condition does),
+    so the replay says they were not made, not that the log lacks them, and no
+    decision is marked as missing any. The same messages said to be an ``active``
+    run (or not saying) lack them: then they are missing."""
+    from pipemap.replay.source import MemorySource
+
+    contents = read_log(RECORDINGS / "paper_autonomous.mcap")
+    run = dict(contents.metadata[METADATA_RUN])
+    run.pop("condition")
+    if condition is not None:
+        run["condition"] = condition
+    source = MemorySource(list(contents.messages), run, "paper_autonomous.mcap")
+    result = replay(source, LocalizerConfig(threshold=0.6))
+    asked = sum(len(v.decision.probes) for v in result.visits)
+    assert asked > 0
+    missing = sum(v.probes_not_in_log for v in result.visits)
+    gap = f"{asked} probe sweep(s) asked for are not in the log"
+    not_made = f"active vision asked for {asked} probe sweep(s); in condition 'autonomous'"
+    assert missing == (asked if makes_probes else 0)
+    notes = [w for w in result.warnings if "probe" in w]
+    assert len(notes) == 1
+    assert notes[0].startswith(gap if makes_probes else not_made)
