@@ -63,6 +63,7 @@ __all__ = [
     "PairStatistics",
     "ScoreReport",
     "VisitScore",
+    "latency_summary",
     "pair_statistics",
     "score",
     "score_replay",
@@ -225,11 +226,7 @@ class ScoreReport:
             ],
         }
         if with_latency:
-            latencies = [v.latency_ms for v in self.visits]
-            doc["latency_ms"] = {
-                "mean": round(statistics.fmean(latencies), 3) if latencies else None,
-                "max": round(max(latencies), 3) if latencies else None,
-            }
+            doc["latency_ms"] = latency_summary([v.latency_ms for v in self.visits])
         return doc
 
     def csv_text(self) -> str:
@@ -282,6 +279,28 @@ SCORE_TOPICS = (*REPLAY_TOPICS, Topic.TRUE_SWEEP, Topic.NETWORK)
 #: all of them took 45 s there and would take over an hour here. Pairs of one junction
 #: are few (about as many as the visits) and always all compared.
 MAX_DIFFERENT_PAIRS = 5000
+
+
+def latency_summary(latencies: Sequence[float]) -> dict[str, float | None]:
+    """Mean, median, 95th percentile and largest of the decisions' latencies (ms,
+    to 1e-3; ``None`` without a decision). A robot waits at the junction for every
+    decision, so the tail matters as much as the mean: the percentile is numpy's
+    linear one (``statistics.quantiles``, inclusive), the largest itself for one
+    decision."""
+    if not latencies:
+        return dict.fromkeys(("mean", "median", "p95", "max"))
+    ordered = sorted(latencies)
+    p95 = (
+        ordered[0]
+        if len(ordered) == 1
+        else statistics.quantiles(ordered, n=20, method="inclusive")[18]
+    )
+    return {
+        "mean": round(statistics.fmean(ordered), 3),
+        "median": round(statistics.median(ordered), 3),
+        "p95": round(p95, 3),
+        "max": round(ordered[-1], 3),
+    }
 
 
 def pair_statistics(

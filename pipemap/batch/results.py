@@ -78,6 +78,8 @@ SCORE_COLUMNS = (
     "rotation_error_rad.known.max",
     "rotation_error_rad.known.n",
     "latency_ms.mean",
+    "latency_ms.median",
+    "latency_ms.p95",
     "latency_ms.max",
     # With deposits (grid key ``obstacles``): how many pipes of each kind, counted.
     "blocked.marked",
@@ -106,6 +108,8 @@ VOLATILE_COLUMNS = (
     "score_wall_s",
     "worker",
     "latency_ms.mean",
+    "latency_ms.median",
+    "latency_ms.p95",
     "latency_ms.max",
     # With deposits (grid key ``obstacles``): how many pipes of each kind, counted.
     "blocked.marked",

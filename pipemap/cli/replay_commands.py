@@ -182,6 +182,7 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
             f" ({', '.join(blocked['marked']) or 'none marked'})"
         )
     ports = {True: "correct", False: "WRONG", None: "none (no exits in the log)"}
+    latency = doc["latency_ms"]
     lines += [
         f"ports       {ports[doc['ports_correct']]}",
         f"decisions   {counts['correct_known']} correct known, {counts['correct_new']} correct "
@@ -191,8 +192,9 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         f"{_stat(doc['pairs']['different'])}",
         f"rotation    error on correct known visits: mean {_num(rot['mean'])} rad, "
         f"max {_num(rot['max'])} rad (n={rot['n']})",
-        f"latency     mean {_num(doc['latency_ms']['mean'], 1)} ms, "
-        f"max {_num(doc['latency_ms']['max'], 1)} ms per decision",
+        f"latency     mean {_num(latency['mean'], 1)} ms, median {_num(latency['median'], 1)}"
+        f", 95th percentile {_num(latency['p95'], 1)}, max {_num(latency['max'], 1)} ms "
+        "per decision",
         "visit  true  node  known  similarity  margin    rotation  error      in  out  outcome",
     ]
     for v in doc["per_visit"]:

@@ -51,7 +51,9 @@ def test_score_reports_every_visit_against_the_truth(recorded_run: Path, tmp_pat
     assert doc["similarity"]["known"]["n"] + doc["similarity"]["unknown"]["n"] == 11
     assert [v["candidate"] for v in doc["per_visit"][:2]] == [None, None]
     assert set(doc["rotation_error_rad"]["known"]) == {"mean", "max", "n"}
-    assert doc["latency_ms"]["max"] >= doc["latency_ms"]["mean"] > 0
+    latency = doc["latency_ms"]
+    assert latency["max"] >= latency["p95"] >= latency["median"] > 0
+    assert latency["max"] >= latency["mean"] > 0
     saved = json.loads((results / "score.json").read_text())
     assert saved["decisions"] == doc["decisions"]
     rows = list(csv.DictReader((results / "visits.csv").open()))
@@ -91,7 +93,11 @@ def test_score_text_formats(recorded_run: Path) -> None:
     )
     merges = doc["decisions"]["false_merge"]
     assert f", {merges} false merge{'' if merges == 1 else 's'}," in text
-    assert re.search(r"latency     mean \d+\.\d ms, max \d+\.\d ms per decision", text)
+    assert re.search(
+        r"latency     mean \d+\.\d ms, median \d+\.\d, 95th percentile \d+\.\d, "
+        r"max \d+\.\d ms per decision",
+        text,
+    )
     rows = [line.split() for line in text.splitlines() if line.startswith("0001")]
     assert rows and rows[0][4:6] == ["-", "-"]  # the first visit compared with nothing
     second_known = next(v for v in doc["per_visit"] if v["similarity"] is not None)
@@ -124,3 +130,26 @@ def test_score_needs_the_truth(recorded_run: Path, tmp_path: Path) -> None:
                 writer.write_serialized(m.topic, m.log_time_ns, m.data)
     done = pipemap("score", str(blind))
     assert done.returncode == 2 and "no ground truth" in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("latencies", "expected"),
+    [
+        # 1..20 ms: the 95th percentile lies 0.95 of the way from the first to the
+        # last, at 18.05 positions: 19 + 0.05.
+        (
+            [float(x) for x in range(20, 0, -1)],
+            {"mean": 10.5, "median": 10.5, "p95": 19.05, "max": 20.0},
+        ),
+        # One slow decision among nine quick ones: the mean hides it, the tail shows it.
+        ([5.0] * 9 + [300.0], {"mean": 34.5, "median": 5.0, "p95": 167.25, "max": 300.0}),
+        ([7.25], {"mean": 7.25, "median": 7.25, "p95": 7.25, "max": 7.25}),
+        ([], {"mean": None, "median": None, "p95": None, "max": None}),
+    ],
+)
+def test_the_latency_summary_gives_the_tail_as_well_as_the_mean(
+    latencies: list[float], expected: dict[str, float | None]
+) -> None:
+    from pipemap.replay.score import latency_summary
+
+    assert latency_summary(latencies) == expected
