@@ -20,7 +20,6 @@ import logging
 import os
 import re
 import shutil
-import signal
 import socket
 import threading
 import time
@@ -35,11 +34,11 @@ from pipemap.batch.results import (
     RESULT_FILES,
     read_result,
     result_row,
-    write_failed,
-    write_run,
+    write_recording,
     write_table,
 )
 from pipemap.batch.run import run_recording
+from pipemap.batch.signals import held_signals, terminate_as_interrupt
 from pipemap.batch.spec import BatchSpec, RunPoint
 from pipemap.errors import InputError
 
@@ -281,26 +280,29 @@ def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
         ray.shutdown()
 
 
-@contextlib.contextmanager
-def _terminate_as_interrupt() -> Iterator[None]:
-    """SIGTERM (``kill``, a scheduler ending the job) stops the batch as Ctrl-C does,
-    and later ones are ignored until the table is written. Without this, the handler
-    ``ray.init`` installs exits at once and leaves the table behind the finished
-    runs. Only the main thread may set a handler; elsewhere SIGTERM is left alone."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.getsignal(signal.SIGTERM)
-
-    def stop(signum: int, frame: object) -> None:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGTERM, stop)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+def _take_recording(
+    out: Path,
+    points: tuple[RunPoint, ...],
+    outcome: Mapping[str, Any] | None,
+    why: str,
+    keep_logs: bool,
+    summary: BatchSummary,
+    rows: dict[str, dict[str, Any]],
+    event: Callable[[str, RunPoint | None, Mapping[str, Any] | None], None],
+) -> None:
+    """Write a finished recording's runs and count them in ``summary`` and ``rows``,
+    as one step: a stop waits for it, because the runs share the log and the table a
+    stop writes must hold every run whose folder is written."""
+    with held_signals():
+        docs = write_recording(out, points, outcome, why, keep_logs)
+        for point, doc in zip(points, docs, strict=True):
+            if doc["status"] != "ok":
+                summary.failed += 1
+            rows[point.run_id] = result_row(out, doc)
+            summary.done += 1
+            event(doc["status"], point, doc)
+        if outcome is not None:
+            summary.cpu_s += float(outcome.get("cpu_s", 0.0))
 
 
 def _interrupted(exc: BaseException) -> bool:
@@ -438,19 +440,7 @@ def run_batch(
             )
 
     def finished(points: tuple[RunPoint, ...], outcome: Mapping[str, Any] | None, why: str) -> None:
-        for point in points:
-            if outcome is not None:
-                # The runs of one recording share its log: written once, then linked.
-                first = points[0].run_id if point is not points[0] else None
-                doc = write_run(out, point, outcome, plan.options.keep_logs, first)
-            else:
-                doc = write_failed(out, point, why)
-                summary.failed += 1
-            rows[point.run_id] = result_row(out, doc)
-            summary.done += 1
-            event(doc["status"], point, doc)
-        if outcome is not None:
-            summary.cpu_s += float(outcome.get("cpu_s", 0.0))
+        _take_recording(out, points, outcome, why, plan.options.keep_logs, summary, rows, event)
         table()
 
     queue = _recordings(pending)
@@ -460,7 +450,7 @@ def run_batch(
         return summary
     with (
         ray_session(plan.options.address, plan.options.workers) as workers,
-        _terminate_as_interrupt(),
+        terminate_as_interrupt(),
     ):
         summary.workers = workers
         remote = ray.remote(num_cpus=1, max_retries=1, retry_exceptions=True)(_one_thread(task))

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from pipemap.batch.run import LOG_NAME
+from pipemap.batch.signals import held_signals
 from pipemap.batch.spec import GRID_KEYS, RULES, BatchSpec, RunPoint
 
 __all__ = [
@@ -37,6 +38,7 @@ __all__ = [
     "read_table",
     "result_row",
     "write_failed",
+    "write_recording",
     "write_run",
     "write_table",
 ]
@@ -209,6 +211,30 @@ def write_run(
         files[LOG_NAME] = shared if shared is not None and shared.is_file() else outcome["log"]
     _replace_folder(out, point.run_id, files)
     return doc
+
+
+def write_recording(
+    out: Path,
+    points: tuple[RunPoint, ...],
+    outcome: Mapping[str, Any] | None,
+    reason: str,
+    keep_log: bool,
+) -> list[dict[str, Any]]:
+    """Write the runs of one recording (``points``, one per rule) as one step: the
+    scored runs of ``outcome`` (the first folder holds the log, the others link to
+    it), or, without an outcome, each failed for ``reason``. Ctrl-C and SIGTERM wait
+    until every folder is written (:func:`batch.signals.held_signals`), so a stopped
+    batch keeps all of a recording's runs or none. Returns their ``result.json``
+    documents, in order."""
+    docs = []
+    with held_signals():
+        for point in points:
+            if outcome is None:
+                docs.append(write_failed(out, point, reason))
+                continue
+            first = points[0].run_id if point is not points[0] else None
+            docs.append(write_run(out, point, outcome, keep_log, first))
+    return docs
 
 
 def write_failed(out: Path, point: RunPoint, reason: str) -> dict[str, Any]:
