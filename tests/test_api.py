@@ -38,6 +38,19 @@ def test_replay_takes_a_log_or_a_path_and_gives_the_same_map(log: api.Log) -> No
     assert len(by_log["nodes"]) == 7
 
 
+def test_replay_drops_each_visits_images_unless_asked_to_keep_them(log: api.Log) -> None:
+    """A long log's replay holds its map, not its images: by default no visit's sweep
+    is kept; ``keep_images`` keeps each visit's, the images ``log.visits()`` gives."""
+    dropped = api.replay(log)
+    assert len(dropped.visit_sets) == 0
+    assert len(dropped.visit_prepared) == len(dropped.visits) == 13  # for pair statistics
+    kept = api.replay(log, keep_images=True)
+    assert kept.document() == dropped.document()
+    by_visit = {v.visit_id: v.images.images for v in log.visits()}
+    for visit in kept.visits:
+        assert (kept.visit_sets[visit.sweep_id].images == by_visit[visit.visit_id]).all()
+
+
 def test_score_is_what_pipemap_score_stored(log: api.Log) -> None:
     stored = json.loads((RECORDINGS / "paper_autonomous.score.json").read_text())
     report = api.score(log)
