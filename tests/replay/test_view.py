@@ -416,3 +416,24 @@ def test_the_command_never_reads_the_log_whole(
     status, _, err = run(["view", str(recorded_run), "--save", str(out)], capfd)
     assert status == 0, err
     assert out.exists()
+
+
+@pytest.mark.parametrize(("condition", "missing"), [("autonomous", "INFO"), ("active", "WARN")])
+def test_a_decision_is_a_warning_only_where_probes_the_robot_makes_are_missing(
+    tmp_path: Path, condition: str, missing: str
+) -> None:
+    """The stored autonomous run asks for probes it cannot make (as online): those
+    decisions are plain ones in the view. The same messages said to be an ``active``
+    run lack probes its robot would have made: those decisions are warnings."""
+    from pipemap.recorder import METADATA_RUN
+    from pipemap.replay.source import MemorySource
+
+    contents = read_log(RECORDINGS / "paper_autonomous.mcap")
+    run = {**contents.metadata[METADATA_RUN], "condition": condition}
+    source = MemorySource(list(contents.messages), run, "paper_autonomous.mcap")
+    result = replay(source)
+    assert any(v.decision.probes for v in result.visits)
+    save_view(source, result, tmp_path / "view.rrd")
+    levels = column(read_chunks(tmp_path / "view.rrd"), "/log/decisions", "TextLog:level")
+    expected = [missing if v.decision.probes else "INFO" for v in result.visits]
+    assert [level[0] for level in levels] == expected
