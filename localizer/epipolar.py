@@ -2,7 +2,8 @@
 
 Residuals ``a . (t x R b)`` of matched bearings, the exact grid count over rotations
 and directions of motion (:func:`_grid_counts`), Gauss-Newton on the inliers, and
-the refinement with the relative tilt free. Why and how: :mod:`localizer.twoview`.
+the refinement with the relative tilt free; the levelling by an IMU reading. Why
+and how: :mod:`localizer.twoview`.
 """
 
 from __future__ import annotations
@@ -133,6 +134,18 @@ def _azimuth_peak(a: np.ndarray, b: np.ndarray) -> float:
     counts = np.bincount(index, minlength=bins)
     smooth = counts + np.roll(counts, 1) + np.roll(counts, -1)
     return wrap_angle_rad((int(np.argmax(smooth)) + 0.5) * 2.0 * math.pi / bins)
+
+
+def _levelling(roll_rad: float, pitch_rad: float) -> np.ndarray:
+    """The rotation taking bearings of a body rolled and pitched as given (the frame
+    the camera sweeps in) into a level frame of the same heading: pitch about the
+    left axis (nose down positive) after roll about the forward one."""
+    cp, sp = math.cos(pitch_rad), math.sin(pitch_rad)
+    cr, sr = math.cos(roll_rad), math.sin(roll_rad)
+    pitch = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    roll = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    matrix: np.ndarray = pitch @ roll
+    return matrix
 
 
 def _tilt_matrix(params: np.ndarray) -> np.ndarray:

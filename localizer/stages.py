@@ -7,7 +7,10 @@ grid of :func:`localizer.epipolar._grid_counts`; the first share is matched in t
 halves, with an early gate after the first, :func:`_first_stage`). :func:`_coarse_start` is the
 coarse search that starts the fit's refinement: on every rotation around the
 matches' azimuth peak and the guess, or, when the last gate's grid already found
-a clear peak, only around it. Why: :mod:`localizer.twoview`.
+a clear peak, only around it. A pair whose first stages already fit clearly
+stops matching there (:attr:`TwoViewConfig.accept_share`), and a fit compared with
+such a one matches as many stages (:attr:`TwoViewConfig.stage_limit`). Why:
+:mod:`localizer.twoview`.
 """
 
 from __future__ import annotations
@@ -36,6 +39,9 @@ class _Staged:
     gate_counts: np.ndarray | None = None
     gate_rotations: np.ndarray | None = None
     gate_needed: int = 0
+    #: Stages matched: all of them (``gate_every``), or fewer when the fit stopped
+    #: early or was limited.
+    stages: int = 1
 
 
 def _rotations(centres: list[float], config: TwoViewConfig) -> np.ndarray:
@@ -90,13 +96,24 @@ def _staged_matches(
 ) -> _Staged | None:
     """The matches of :func:`_matches`, found in ``config.gate_every`` stages of the
     known sweep's keypoints; ``None`` as soon as the matches so far fall short of a
-    stage's gate (see :attr:`TwoViewConfig.gate_every`)."""
+    stage's gate (see :attr:`TwoViewConfig.gate_every`).
+
+    Only the first ``config.stage_limit`` stages are matched, if it is set: the
+    gates then ask what a fit of all stages asked ``min_inliers`` times
+    ``gate_every / stage_limit`` would, so ``min_inliers`` is what those stages'
+    matches must fit. Without a limit, the matching stops after a stage whose count
+    on the coarse grid reaches ``config.accept_share`` times ``min_inliers`` (see
+    :attr:`TwoViewConfig.accept_share`); the count is the one a gate makes anyway.
+    """
     stages = max(1, config.gate_every)
-    gate = config.gate_share * config.min_inliers / stages
+    depth = stages if config.stage_limit <= 0 else min(stages, config.stage_limit)
+    bar = config.min_inliers * stages / depth  # the gates' bar, as for a fit of every stage
+    gate = config.gate_share * bar / stages
+    part = np.arange(len(known)) % stages
     # A first gate below 3 stops nothing: any two matches fit some motion.
     if stages == 1 or int(gate) < 3:
-        return _Staged(_matches(query, known, ratio, overlap, cache=cache))
-    part = np.arange(len(known)) % stages
+        only = None if depth == stages else part < depth
+        return _Staged(_matches(query, known, ratio, overlap, only, cache), stages=depth)
     first = _first_stage(
         known,
         lambda only: _matches(query, known, ratio, overlap, only, cache),
@@ -104,18 +121,21 @@ def _staged_matches(
             _coarse(query, known, found, guess_rad, config, tolerance)[0].max(initial=0)
         ),
         config,
+        bar,
     )
     if first is None:
         return None
+    early_stop = config.accept_share > 0 and depth == stages
+    accept = config.accept_share * config.min_inliers if early_stop else math.inf
     found: list[tuple[np.ndarray, np.ndarray]] = [first]
     count = 0
     grid: tuple[np.ndarray, np.ndarray, int] | None = None
-    for stage in range(stages):
+    for stage in range(depth):
         if stage > 0:
             found.append(_matches(query, known, ratio, overlap, part == stage, cache))
         needed = int(gate * (stage + 1))
         # More matches never lower a count: a gate the last count passes is passed.
-        if stage < stages - 1 and count < needed:
+        if stage < depth - 1 and count < needed:
             if sum(len(f[0]) for f in found) < needed:
                 return None  # too few matches for any cell to count what it asks
             counts, rotations, _ = _coarse(
@@ -125,9 +145,11 @@ def _staged_matches(
             if count < needed:
                 return None
             grid = (counts, rotations, needed)
+            if count >= accept:
+                return _Staged(_merged(known, found), *grid, stages=stage + 1)
     if grid is None:
-        return _Staged(_merged(known, found))
-    return _Staged(_merged(known, found), *grid)
+        return _Staged(_merged(known, found), stages=depth)
+    return _Staged(_merged(known, found), *grid, stages=depth)
 
 
 def _first_stage(
@@ -135,15 +157,17 @@ def _first_stage(
     match: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
     best_count: Callable[[tuple[np.ndarray, np.ndarray]], int],
     config: TwoViewConfig,
+    bar: float,
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The first stage's matches (:func:`_merged`'s order), found in two halves with
     the early gate of :attr:`TwoViewConfig.early_gate_share` after the first;
     ``None`` when the first half falls short of it. The gate only gives up: the
     matches, and every later gate, are those of one first stage. ``match`` matches
     the known keypoints a mask marks, ``best_count`` is the coarse grid's best
-    count of some matches."""
+    count of some matches, ``bar`` what a fit of every stage must fit (the gates'
+    ``min_inliers``)."""
     stages = max(1, config.gate_every)
-    early = int(config.early_gate_share * config.min_inliers / (2 * stages))
+    early = int(config.early_gate_share * bar / (2 * stages))
     part = np.arange(len(known)) % (2 * stages)
     if early < 3:  # stops nothing (see _staged_matches): one call
         return _merged(known, [match(part % stages == 0)])

@@ -12,7 +12,9 @@ keypoints fit best is kept:
 - the fit at the NCC's rotation failed: each allowed rotation is tried (what was
   once a fit at any rotation, under the lamp only);
 - it passed: each other allowed rotation must fit more keypoints to replace it (so
-  a wrong turn stops at its first gate);
+  a wrong turn stops at its first gate), of as many of the candidate's keypoints
+  as the passing fit matched (a fit may stop after the first stages,
+  :attr:`localizer.twoview.TwoViewConfig.accept_share`);
 - no rotation is allowed (the pipes cannot line up): none is tried; the port check
   passes the junction over anyway.
 
@@ -81,6 +83,19 @@ def candidate_fit(
         asked = replace(config, min_inliers=max(config.min_inliers, bar), around_peak=around_peak)
         return fit_two_view(query, known, asked, guess, cache=cache)
 
+    def beats(rotation: float, best: TwoViewFit) -> TwoViewFit | None:
+        # On as many of the known keypoints as the fit at hand matched: counts of
+        # the same stages compare; the rival does not stop early on its own.
+        limit = 0 if best.stages is None else best.stages
+        asked = replace(
+            config,
+            min_inliers=max(config.min_inliers, best.inliers + 1),
+            around_peak=False,
+            accept_share=0.0,
+            stage_limit=limit,
+        )
+        return fit_two_view(query, known, asked, rotation, cache=cache)
+
     first = fit_at(guess_rad, needed)
     if rotations is None:
         if first is None and any_rotation:
@@ -92,7 +107,7 @@ def candidate_fit(
             continue  # the fit at hand is this rotation's
         if first is None and _apart(guess_rad, rotation) <= config.search_rad / 2.0:
             continue  # the failed fit searched here already
-        other = fit_at(rotation, needed if best is None else best.inliers + 1, False)
+        other = fit_at(rotation, needed, False) if best is None else beats(rotation, best)
         if other is None or not agrees(other):
             continue
         # Only another turn replaces a fit (its matches, found in other images, may

@@ -9,13 +9,13 @@ import cv2
 import numpy as np
 import pytest
 
+from pipemap.localizer.epipolar import _levelling
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.keymatch import _matches
 from pipemap.localizer.similarity import wrap_angle_rad
 from pipemap.localizer.twoview import (
     SweepFeatures,
     TwoViewConfig,
-    _levelling,
     fit_two_view,
     overlapping_images,
     stored_features,

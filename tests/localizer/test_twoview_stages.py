@@ -109,20 +109,6 @@ def test_two_stages_give_the_one_stage_fit(
         assert two == one
 
 
-@pytest.fixture
-def seen(monkeypatch: pytest.MonkeyPatch) -> list[int]:
-    """How many keypoints of the known sweep each Hamming matching took."""
-    counts: list[int] = []
-    real = keymatch._word_ratio_matches
-
-    def counting(words_a: np.ndarray, b: np.ndarray, ratio: float) -> tuple[np.ndarray, np.ndarray]:
-        counts.append(len(b))
-        return real(words_a, b, ratio)
-
-    monkeypatch.setattr(keymatch, "_word_ratio_matches", counting)
-    return counts
-
-
 def test_the_early_gate_stops_a_different_junction_after_an_eighth(
     seen: list[int], features: dict[str, twoview.SweepFeatures]
 ) -> None:

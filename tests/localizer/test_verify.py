@@ -5,7 +5,7 @@ the rotation it is guided by; and the half-turn mistake on a stored log it fixes
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,9 +30,11 @@ class FakeFits:
 
     answers: dict[float | None, TwoViewFit]
     calls: list[tuple[float | None, int, bool]] = field(default_factory=list)
+    configs: list[TwoViewConfig] = field(default_factory=list)
 
     def __call__(self, query, known, config, guess=None, cache=None):  # type: ignore[no-untyped-def]
         self.calls.append((guess, config.min_inliers, config.around_peak))
+        self.configs.append(config)
         for at, fit in self.answers.items():
             near = at is None if guess is None else at is not None and abs(at - guess) < 0.2
             if near and fit.inliers >= config.min_inliers:
@@ -91,6 +93,28 @@ def test_another_turn_with_fewer_keypoints_or_the_same_turn_with_more_does_not_w
     # A fit guided to a turn that lands on the turn at hand is no news.
     same = FakeFits({0.0: _fit(0.0, 80), PI: _fit(0.1, 90)})
     assert _check(monkeypatch, same, 0.0, (0.0, PI)) == _fit(0.0, 80)
+
+
+def test_a_fit_of_the_first_quarter_is_rivalled_on_as_many_keypoints(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The guided fit stopped after the first quarter of the candidate's keypoints
+    (119 inliers of it): each other turn of a cross is fitted on that quarter too,
+    asked one inlier more, and does not stop early on its own. A fit of every
+    keypoint is rivalled on every keypoint, as before."""
+    cross = (0.0, PI / 2, PI, -PI / 2)
+    quarter = replace(_fit(0.0, 119), stages=1)
+    fake = FakeFits({0.0: quarter})
+    assert _check(monkeypatch, fake, 0.0, cross) == quarter
+    first, *rivals = fake.configs
+    assert (first.stage_limit, first.accept_share) == (0, TwoViewConfig().accept_share)
+    assert len(rivals) == 3
+    assert all((c.stage_limit, c.accept_share, c.min_inliers) == (1, 0.0, 120) for c in rivals)
+    fake = FakeFits({0.0: _fit(0.0, 400)})
+    _check(monkeypatch, fake, 0.0, cross)
+    assert [(c.stage_limit, c.accept_share, c.min_inliers) for c in fake.configs[1:]] == [
+        (0, 0.0, 401)
+    ] * 3
 
 
 def test_a_tee_whose_guided_fit_passed_costs_no_other_fit(monkeypatch: pytest.MonkeyPatch) -> None:
