@@ -52,6 +52,9 @@ def decision_record(
         "rotation_pinhole_rad": None if match is None else _round(match.rotation_pinhole_rad),
         "rotation_two_view_rad": None if fit is None else _round(fit.rotation_rad),
         "two_view_inliers": None if fit is None else fit.inliers,
+        # Set when the fit matched only the first stages of the candidate's keypoints
+        # (its inliers count those): TwoViewConfig.accept_share.
+        "two_view_stages": None if fit is None else fit.stages,
         "probes": [
             {
                 "kind": p.request.kind.value,

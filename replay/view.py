@@ -99,7 +99,8 @@ def describe_decision(visit: VisitDecision) -> str:
         parts.append(f"rotation {d.match.rotation_rad:+.3f} rad")
     if d.two_view is not None:
         fit = d.two_view
-        parts.append(f"two-view rotation {fit.rotation_rad:+.4f} rad ({fit.inliers} inliers)")
+        of = "" if fit.stages is None else f" of the first {fit.stages} stage(s)"
+        parts.append(f"two-view rotation {fit.rotation_rad:+.4f} rad ({fit.inliers} inliers{of})")
     if d.probes:
         probes = []
         for p in d.probes:

@@ -288,7 +288,7 @@ def _document_inputs() -> tuple[TopoMap, list[tuple[str, Decision]]]:
                     ProbeOutcome(ProbeRequest(ProbeKind.FORWARD, forward_m=0.03), None, False),
                 ),
                 candidate=0,
-                two_view=TwoViewFit(3.1234567891, 0.5, inliers=250, matches=400),
+                two_view=TwoViewFit(3.1234567891, 0.5, inliers=250, matches=400, stages=1),
             ),
         ),
     ]
@@ -316,6 +316,7 @@ def test_map_document_structure() -> None:
         "rotation_pinhole_rad": None,
         "rotation_two_view_rad": None,
         "two_view_inliers": None,
+        "two_view_stages": None,
         "probes": [],
         "exits_rad": None,
         "exit_ports": None,
@@ -343,6 +344,7 @@ def test_document_floats_are_rounded_to_six_decimals() -> None:
     assert third["rotation_pinhole_rad"] == -2.0
     assert third["rotation_two_view_rad"] == 3.123457
     assert third["two_view_inliers"] == 250
+    assert third["two_view_stages"] == 1  # a fit of the first quarter alone
     text = dumps_document(map_document(m, visits))
     assert "0.912346" in text
     assert "0.912345678" not in text
