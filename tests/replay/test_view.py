@@ -8,6 +8,7 @@ The recording is saved once per module from the shared 32 px run and checked wit
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import socket
 import subprocess
@@ -437,3 +438,19 @@ def test_a_decision_is_a_warning_only_where_probes_the_robot_makes_are_missing(
     levels = column(read_chunks(tmp_path / "view.rrd"), "/log/decisions", "TextLog:level")
     expected = [missing if v.decision.probes else "INFO" for v in result.visits]
     assert [level[0] for level in levels] == expected
+
+
+def test_a_decision_says_when_its_fit_matched_only_the_first_stages() -> None:
+    """A two-view fit on the first quarter of a junction's keypoints counts that
+    quarter's inliers: the line says so, lest a reader take them for a weak fit."""
+    log = FileSource(RECORDINGS / "paper_autonomous.mcap")
+    visit = next(v for v in replay(log).visits if v.decision.two_view is not None)
+    fit = visit.decision.two_view
+    assert fit is not None and fit.stages is None
+    whole = view_module.describe_decision(visit)
+    assert f"({fit.inliers} inliers)" in whole
+    decision = dataclasses.replace(visit.decision, two_view=dataclasses.replace(fit, stages=1))
+    quarter = dataclasses.replace(visit, decision=decision)
+    line = view_module.describe_decision(quarter)
+    assert f"({fit.inliers} inliers of the first 1 stage(s))" in line
+    assert line.replace(" of the first 1 stage(s)", "") == whole
