@@ -84,6 +84,12 @@ def _coarse(
     return counts, rotations, centres
 
 
+def _asked_stages(config: TwoViewConfig) -> int:
+    """The stages a fit is asked to match: all (``gate_every``), or ``stage_limit``."""
+    stages = max(1, config.gate_every)
+    return stages if config.stage_limit <= 0 else min(stages, config.stage_limit)
+
+
 def _staged_matches(
     query: SweepFeatures,
     known: SweepFeatures,
@@ -106,7 +112,7 @@ def _staged_matches(
     :attr:`TwoViewConfig.accept_share`); the count is the one a gate makes anyway.
     """
     stages = max(1, config.gate_every)
-    depth = stages if config.stage_limit <= 0 else min(stages, config.stage_limit)
+    depth = _asked_stages(config)
     bar = config.min_inliers * stages / depth  # the gates' bar, as for a fit of every stage
     gate = config.gate_share * bar / stages
     part = np.arange(len(known)) % stages

@@ -58,7 +58,7 @@ from pipemap.localizer.epipolar import (
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.keymatch import MatchCache, overlapping_images
 from pipemap.localizer.similarity import wrap_angle_rad
-from pipemap.localizer.stages import _coarse_start, _staged_matches
+from pipemap.localizer.stages import _asked_stages, _coarse_start, _staged_matches
 
 __all__ = [
     "StoredFeatures",
@@ -444,8 +444,7 @@ def _fit(
     if staged is None:
         return None, False
     stages = max(1, config.gate_every)
-    asked = stages if config.stage_limit <= 0 else min(stages, config.stage_limit)
-    stopped_early = staged.stages < asked
+    stopped_early = staged.stages < _asked_stages(config)
     ia, ib = staged.found
     if len(ia) < config.min_inliers:
         return None, stopped_early
