@@ -1,7 +1,8 @@
 """The localizer: junction recognition and topological mapping, pure.
 
 Depends on numpy, scipy, opencv and networkx only: no files, no simulator, no logs,
-no clock. Its inputs and outputs are the types exported here.
+no clock (a caller may give :class:`Localizer` one to time its phases by). Its inputs
+and outputs are the types exported here.
 """
 
 from __future__ import annotations
@@ -47,6 +48,7 @@ if TYPE_CHECKING:
         dumps_document,
         map_document,
     )
+    from pipemap.localizer.phases import PHASES
     from pipemap.localizer.ports import (
         PORT_TOLERANCE_RAD,
         PortMatch,
@@ -117,7 +119,7 @@ _EXPORTS = {
     "ROBUST_ZOOMS": "pipemap.localizer.presets",
     "DEFAULT_FOV_RAD": "pipemap.localizer.imageset",
     "DEFAULT_KEEP_TOP_FRACTION": "pipemap.localizer.imageset",
-    "DEFAULT_THRESHOLD": "pipemap.localizer.localizer",
+    "DEFAULT_THRESHOLD": "pipemap.localizer.config",
     "Decision": "pipemap.localizer.decision",
     "FLOAT_DECIMALS": "pipemap.localizer.mapjson",
     "FastConfig": "pipemap.localizer.fastmatch",
@@ -125,10 +127,11 @@ _EXPORTS = {
     "IlluminationConfig": "pipemap.localizer.illumination",
     "ImageSet": "pipemap.localizer.imageset",
     "Localizer": "pipemap.localizer.localizer",
-    "LocalizerConfig": "pipemap.localizer.localizer",
+    "LocalizerConfig": "pipemap.localizer.config",
     "MapEdge": "pipemap.localizer.topomap",
-    "PAPER": "pipemap.localizer.localizer",
+    "PAPER": "pipemap.localizer.config",
     "PAPER_SCALE": "pipemap.localizer.similarity",
+    "PHASES": "pipemap.localizer.phases",
     "PairPeak": "pipemap.localizer.similarity",
     "PreparedSet": "pipemap.localizer.fastmatch",
     "ProbeKind": "pipemap.localizer.decision",
@@ -182,6 +185,7 @@ __all__ = [
     "FLOAT_DECIMALS",
     "PAPER",
     "PAPER_SCALE",
+    "PHASES",
     "Decision",
     "ExploreConfig",
     "ExploreEnd",

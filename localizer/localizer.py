@@ -26,7 +26,7 @@ leaves by.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from pipemap.localizer.config import DEFAULT_THRESHOLD, PAPER, LocalizerConfig
 from pipemap.localizer.decision import (
@@ -41,6 +41,7 @@ from pipemap.localizer.decision import (
 from pipemap.localizer.fastmatch import FastMatcher, PreparedSet
 from pipemap.localizer.illumination import normalised
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.phases import PhaseClock
 from pipemap.localizer.ports import (
     PortMatch,
     clockwise_ports,
@@ -81,8 +82,15 @@ _DEPARTURE_TOLERANCE_RAD = math.pi / 6.0
 class Localizer:
     """Known/new decisions over a growing database of junctions, and the map."""
 
-    def __init__(self, config: LocalizerConfig | None = None) -> None:
+    def __init__(
+        self, config: LocalizerConfig | None = None, clock: Callable[[], float] | None = None
+    ) -> None:
         self.config = config if config is not None else LocalizerConfig()
+        #: A clock in seconds (``time.perf_counter``) to time each decision's phases
+        #: by (:mod:`localizer.phases`); ``None``: none are timed.
+        self._clock = clock
+        #: Seconds of the last decision in each phase (empty without a clock).
+        self.last_phases: dict[str, float] = {}
         self._matcher = FastMatcher(self.config.fast)
         #: Keypoints by node (with ``config.two_view``), computed once per sweep, kept compact.
         self._features: list[StoredFeatures] = []
@@ -139,6 +147,7 @@ class Localizer:
         its heading during the sweep (0 ahead, positive to the left); with them the
         map gets ports. ``odometer_m`` (distance driven so far) gives edges a length.
         """
+        timer = PhaseClock(self._clock)
         exits = None if exits_rad is None else tuple(float(e) for e in exits_rad)
         query = self._lit(query)
         prepared = self._matcher.prepare(query)
@@ -174,9 +183,11 @@ class Localizer:
         stored = None
         ports: PortMatch | None = None
         rejected: list[tuple[int, str]] = []
+        timer.lap("ncc")
         if self.config.two_view:
             stored = stored_features(matched, self.config.two_view_config)
             features = stored.features()
+            timer.lap("keypoints")
         if features is not None and self.config.verify and self._checkable(features):
             verified = self._verified(features, matched_all, turn, exits, rejected)
             known = verified is not None
@@ -208,6 +219,7 @@ class Localizer:
                     i_ports,
                 )
                 break
+        timer.lap("check")
         new_ports = None
         if known:
             assert best is not None
@@ -217,7 +229,9 @@ class Localizer:
             node = self._matcher.add(prepared)
             if stored is not None:
                 if matched is not query:  # a probe's: remember the visit's own sweep
+                    timer.lap("map")
                     stored = stored_features(query, self.config.two_view_config)
+                    timer.lap("keypoints")
                 self._features.append(stored)
             exit_ports = None
             if exits is not None:
@@ -243,6 +257,8 @@ class Localizer:
             rejected=tuple(rejected),
         )
         self._last = decision
+        timer.lap("map")
+        self.last_phases = timer.seconds
         return decision
 
     def _above_threshold(

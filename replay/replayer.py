@@ -109,6 +109,9 @@ class VisitDecision:
     probes_not_in_log: int
     #: The visit's exit scan and departure (robot data), if the log has them.
     exits: LoggedExits | None = None
+    #: Wall time of the decision in each of its phases (:mod:`localizer.phases`),
+    #: seconds; like ``latency_s``, not part of any deterministic output.
+    phases_s: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -279,7 +282,7 @@ class _Replay:
             # the run's settings open the log, before its first sweep.
             self.metadata = self.source.run_metadata()
             lit = lamp_strength(self.metadata) > 0.0
-            self.localizer = Localizer(self.config.for_camera(lit))
+            self.localizer = Localizer(self.config.for_camera(lit), clock=time.perf_counter)
         localizer = self.localizer
         # Where a visit may be lost, a jump in the visit numbers breaks the robot's path:
         # the junctions either side of a lost visit need not be neighbours.
@@ -317,6 +320,7 @@ class _Replay:
                 latency,
                 missing,
                 scan,
+                dict(localizer.last_phases),
             )
         )
         self.last_visit = sweep.visit_id

@@ -36,6 +36,7 @@ from google.protobuf.message import DecodeError
 
 from pipemap.errors import LogFormatError
 from pipemap.localizer import (
+    PHASES,
     FastConfig,
     ImageSet,
     LocalizerConfig,
@@ -54,6 +55,7 @@ from pipemap.replay.coverage import (
     ports_correct,
     true_network,
 )
+from pipemap.replay.latency import latency_summary, phase_means
 from pipemap.replay.logged import SeenSets
 from pipemap.replay.replayer import REPLAY_TOPICS, ReplayResult, replay, visit_label
 from pipemap.replay.source import MessageSource
@@ -64,6 +66,7 @@ __all__ = [
     "ScoreReport",
     "VisitScore",
     "latency_summary",
+    "phase_means",
     "pair_statistics",
     "score",
     "score_replay",
@@ -99,6 +102,11 @@ class VisitScore:
     latency_ms: float
     arrival_port: int | None = None
     departure_port: int | None = None
+    #: ``latency_ms`` by phase (:data:`localizer.phases.PHASES`); ``None`` untimed.
+    ncc_ms: float | None = None
+    keypoints_ms: float | None = None
+    check_ms: float | None = None
+    map_ms: float | None = None
 
 
 @dataclass(frozen=True)
@@ -226,7 +234,9 @@ class ScoreReport:
             ],
         }
         if with_latency:
-            doc["latency_ms"] = latency_summary([v.latency_ms for v in self.visits])
+            phases = [{p: getattr(v, f"{p}_ms") for p in PHASES} for v in self.visits]
+            latency = [v.latency_ms for v in self.visits]
+            doc["latency_ms"] = {**latency_summary(latency), "phases": phase_means(phases)}
         return doc
 
     def csv_text(self) -> str:
@@ -279,28 +289,6 @@ SCORE_TOPICS = (*REPLAY_TOPICS, Topic.TRUE_SWEEP, Topic.NETWORK)
 #: all of them took 45 s there and would take over an hour here. Pairs of one junction
 #: are few (about as many as the visits) and always all compared.
 MAX_DIFFERENT_PAIRS = 5000
-
-
-def latency_summary(latencies: Sequence[float]) -> dict[str, float | None]:
-    """Mean, median, 95th percentile and largest of the decisions' latencies (ms,
-    to 1e-3; ``None`` without a decision). A robot waits at the junction for every
-    decision, so the tail matters as much as the mean: the percentile is numpy's
-    linear one (``statistics.quantiles``, inclusive), the largest itself for one
-    decision."""
-    if not latencies:
-        return dict.fromkeys(("mean", "median", "p95", "max"))
-    ordered = sorted(latencies)
-    p95 = (
-        ordered[0]
-        if len(ordered) == 1
-        else statistics.quantiles(ordered, n=20, method="inclusive")[18]
-    )
-    return {
-        "mean": round(statistics.fmean(ordered), 3),
-        "median": round(statistics.median(ordered), 3),
-        "p95": round(p95, 3),
-        "max": round(ordered[-1], 3),
-    }
 
 
 def pair_statistics(
@@ -442,6 +430,7 @@ def score_replay(
                 true_rotation_rad=true_turn,
                 rotation_error_rad=error,
                 latency_ms=1000.0 * v.latency_s,
+                **{f"{k}_ms": 1000.0 * t for k, t in v.phases_s.items()},
                 arrival_port=d.arrival_port,
                 departure_port=records[index].departure_port if index < len(records) else None,
             )

@@ -83,6 +83,10 @@ SCORE_COLUMNS = (
     "latency_ms.median",
     "latency_ms.p95",
     "latency_ms.max",
+    "latency_ms.phases.ncc",
+    "latency_ms.phases.keypoints",
+    "latency_ms.phases.check",
+    "latency_ms.phases.map",
     # With deposits (grid key ``obstacles``): how many pipes of each kind, counted.
     "blocked.marked",
     "blocked.truly_blocked",
@@ -113,6 +117,10 @@ VOLATILE_COLUMNS = (
     "latency_ms.median",
     "latency_ms.p95",
     "latency_ms.max",
+    "latency_ms.phases.ncc",
+    "latency_ms.phases.keypoints",
+    "latency_ms.phases.check",
+    "latency_ms.phases.map",
     # With deposits (grid key ``obstacles``): how many pipes of each kind, counted.
     "blocked.marked",
     "blocked.truly_blocked",

@@ -195,6 +195,9 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         f"latency     mean {_num(latency['mean'], 1)} ms, median {_num(latency['median'], 1)}"
         f", 95th percentile {_num(latency['p95'], 1)}, max {_num(latency['max'], 1)} ms "
         "per decision",
+        "            of the mean: "
+        + ", ".join(f"{k} {_num(t, 1)}" for k, t in latency["phases"].items())
+        + " ms",
         "visit  true  node  known  similarity  margin    rotation  error      in  out  outcome",
     ]
     for v in doc["per_visit"]:

@@ -339,16 +339,29 @@ def test_the_latency_clock_times_the_decision_not_unpacking_the_images(
         events.append("clock")
         return 0.0
 
+    decide = replayer_module.Localizer.localize
+
+    def localize(self: Any, *args: Any, **kwargs: Any) -> Any:
+        events.append("enter")
+        decision = decide(self, *args, **kwargs)
+        events.append("exit")
+        return decision
+
     monkeypatch.setattr(LoggedSweep, "images", property(images))
     monkeypatch.setattr(replayer_module, "time", types.SimpleNamespace(perf_counter=perf_counter))
+    monkeypatch.setattr(replayer_module.Localizer, "localize", localize)
     source = FileSource(Path(__file__).resolve().parents[2] / "recordings" / "paper_active.mcap")
     result = replay(source)
-    assert events.count("clock") == 2 * len(result.visits)
+    assert events.count("enter") == len(result.visits)
     assert events.count("set") > len(result.visits)  # the probes' sets too
+    # The latency's clock is read just before each decision and just after it (the
+    # readings between are the decision's phases', by the same clock).
+    for k, event in enumerate(events):
+        assert event != "enter" or events[k - 1] == "clock"
+        assert event != "exit" or events[k + 1] == "clock"
     timing = False
     for event in events:
-        if event == "clock":
-            timing = not timing
+        timing = event == "enter" or (timing and event != "exit")
         assert not (timing and event == "set"), "a set was made while the clock ran"
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from pipemap.localizer import PHASES
 from pipemap.recorder import METADATA_RUN, LogWriter, read_log
 from pipemap.replay.score import _map_correct
 
@@ -54,15 +55,31 @@ def test_score_reports_every_visit_against_the_truth(recorded_run: Path, tmp_pat
     latency = doc["latency_ms"]
     assert latency["max"] >= latency["p95"] >= latency["median"] > 0
     assert latency["max"] >= latency["mean"] > 0
+    # Where the mean goes: every phase timed, none longer than the whole.
+    phases = latency["phases"]
+    assert list(phases) == list(PHASES)
+    assert all(t >= 0.0 for t in phases.values())
+    assert phases["ncc"] > 0 and phases["keypoints"] > 0
+    assert sum(phases.values()) <= latency["mean"] + 1e-3 * len(phases)
     saved = json.loads((results / "score.json").read_text())
     assert saved["decisions"] == doc["decisions"]
     rows = list(csv.DictReader((results / "visits.csv").open()))
     assert [r["true_node"] for r in rows] == list("SABACDCFCECAS")
+    for r in rows:  # each visit's phases, within its latency
+        timed = [float(r[f"{p}_ms"]) for p in PHASES]
+        assert min(timed) >= 0.0 and sum(timed) <= float(r["latency_ms"]) + 1e-3 * len(timed)
     # Correct known visits have a rotation error: within two pixels at 32 px (one
     # pixel is 80/32 degrees, 0.044 rad).
     for v in doc["per_visit"]:
         if v["outcome"] == "correct_known":
             assert abs(v["rotation_error_rad"]) < 2 * 0.0437
+
+
+def test_without_the_two_view_check_no_time_goes_to_keypoints(recorded_run: Path) -> None:
+    done = pipemap("score", str(recorded_run), "--json", "--no-two-view")
+    assert done.returncode == 0, done.stderr
+    phases = json.loads(done.stdout)["latency_ms"]["phases"]
+    assert phases["keypoints"] == 0.0 and phases["ncc"] > 0
 
 
 def test_a_wrong_map_is_a_result_not_an_error(recorded_run: Path) -> None:
@@ -97,6 +114,9 @@ def test_score_text_formats(recorded_run: Path) -> None:
         r"latency     mean \d+\.\d ms, median \d+\.\d, 95th percentile \d+\.\d, "
         r"max \d+\.\d ms per decision",
         text,
+    )
+    assert re.search(
+        r"of the mean: ncc \d+\.\d, keypoints \d+\.\d, check \d+\.\d, map \d+\.\d ms", text
     )
     rows = [line.split() for line in text.splitlines() if line.startswith("0001")]
     assert rows and rows[0][4:6] == ["-", "-"]  # the first visit compared with nothing
