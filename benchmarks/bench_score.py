@@ -7,8 +7,10 @@ defaults and once without the two-view check (``--no-two-view``), N times each
 (3 by default), on one core, and times every ``Localizer.localize`` call by CPU
 (``time.process_time``) and wall clock. Per visit the quickest of the N tries is
 kept (the others measure what else the machine was doing); prints the mean,
-median and largest over the visits, and the ratio of the means. Issue 17's target:
-the defaults at most 2x ``--no-two-view`` on a 400 px ``paper`` log.
+median and largest over the visits, the ratio of the means, and where the time of
+the defaults goes (the phases of :mod:`pipemap.localizer.phases`, wall clock, each
+visit's quickest try). Issue 17's target: the defaults at most 2x
+``--no-two-view`` on a 400 px ``paper`` log.
 """
 
 from __future__ import annotations
@@ -29,14 +31,17 @@ import cv2  # noqa: E402
 
 from pipemap import api  # noqa: E402
 from pipemap.allocator import keep_freed_memory  # noqa: E402
-from pipemap.localizer import LocalizerConfig  # noqa: E402
+from pipemap.localizer import PHASES, LocalizerConfig  # noqa: E402
 from pipemap.localizer import localizer as localizer_module  # noqa: E402
 
 cv2.setNumThreads(1)
 
 
-def timed_replay(log: api.Log, config: LocalizerConfig) -> list[tuple[float, float]]:
-    """(CPU s, wall s) of every localize call of one replay of ``log``."""
+Timed = tuple[float, float, dict[str, float]]
+
+
+def timed_replay(log: api.Log, config: LocalizerConfig) -> list[Timed]:
+    """(CPU s, wall s, wall s by phase) of every localize call of one replay of ``log``."""
     calls: list[tuple[float, float]] = []
     real = localizer_module.Localizer.localize
 
@@ -48,10 +53,10 @@ def timed_replay(log: api.Log, config: LocalizerConfig) -> list[tuple[float, flo
 
     localizer_module.Localizer.localize = localize  # type: ignore[method-assign]
     try:
-        api.replay(log, config)
+        result = api.replay(log, config)
     finally:
         localizer_module.Localizer.localize = real  # type: ignore[method-assign]
-    return calls
+    return [(*call, dict(v.phases_s)) for call, v in zip(calls, result.visits, strict=True)]
 
 
 def main() -> int:
@@ -66,7 +71,7 @@ def main() -> int:
         "defaults": defaults,
         "--no-two-view": replace(defaults, two_view=False, verify=False),
     }
-    tries: dict[str, list[list[tuple[float, float]]]] = {name: [] for name in configs}
+    tries: dict[str, list[list[Timed]]] = {name: [] for name in configs}
     for _ in range(args.repeat):
         for name, config in configs.items():
             tries[name].append(timed_replay(log, config))
@@ -84,6 +89,12 @@ def main() -> int:
     print(
         f"defaults / --no-two-view (CPU means): {means['defaults'] / means['--no-two-view']:.2f}x"
     )
+    for name, runs in tries.items():
+        quickest = [min((run[v] for run in runs), key=lambda t: t[1]) for v in range(len(runs[0]))]
+        spent = ", ".join(
+            f"{p} {statistics.fmean(t[2][p] for t in quickest) * 1000:.1f}" for p in PHASES
+        )
+        print(f"{name:<14} wall ms by phase (mean): {spent}")
     return 0
 
 
