@@ -6,7 +6,8 @@ where a decision's time goes gives :class:`localizer.localizer.Localizer` one
 charged to one of :data:`PHASES`:
 
 - ``ncc``: the lamp's normalisation, the matcher's preparation, screening and
-  refinement, and the same for each probe sweep;
+  refinement, and the same for each probe sweep (with the probe source's own time:
+  a replay looks a probe's sweep up, a robot would move and sweep);
 - ``keypoints``: ORB on the sweep (only with the two-view check);
 - ``check``: the choice among the candidates, by the two-view fits and the port
   check, or by the threshold;
