@@ -194,6 +194,12 @@ def test_the_table_is_what_pipemap_score_says_on_the_same_logs(
         cli = _score_cli(str(folder / "run.mcap"), *flags, "--threshold", row["threshold"])
         assert result["commands"]["score"].startswith(" ".join(["pipemap score", *flags]))
         saved = json.loads((folder / "score.json").read_text())
+        # Timing differs from one score to the next, but every latency column is there,
+        # the phases of the mean among them, each within the mean.
+        timed = {c: float(row[c]) for c in SCORE_COLUMNS if c.startswith("latency_ms.")}
+        phases = [t for c, t in timed.items() if c.startswith("latency_ms.phases.")]
+        assert len(phases) == 4 and min(timed.values()) >= 0.0
+        assert sum(phases) <= timed["latency_ms.mean"] + 0.01
         for doc in (cli, saved):
             doc.pop("latency_ms")
             doc.pop("log")
