@@ -22,6 +22,7 @@ when :attr:`localizer.LocalizerConfig.lamp` says the camera is lamp-lit.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import cv2
@@ -54,10 +55,19 @@ class IlluminationConfig:
 
 
 def _blurred(image: np.ndarray, sigma_px: float) -> np.ndarray:
-    """A Gaussian blur of ``sigma_px``, computed on an image shrunk by up to sigma/4
-    (a blur this wide is smooth) and enlarged again."""
+    """A Gaussian blur of ``sigma_px``, computed on an image shrunk by a whole factor
+    of up to sigma/4 (a blur this wide is smooth) and enlarged again.
+
+    The factor is the largest one up to sigma/4 that divides both sides, so the
+    shrinking averages whole blocks of pixels: OpenCV's ``INTER_AREA`` then takes its
+    fast path (0.06 ms for a 400 px image by 5, against 0.32 ms by 400/66 = 6.06, the
+    factor before stop 35), and the small image's pixels lie on the large one's grid.
+    Sides with no common divisor up to sigma/4 are blurred at full size: right, slower.
+    """
     h, w = image.shape
-    factor = max(1, min(int(sigma_px // 4), h // 4, w // 4))
+    most = max(1, min(int(sigma_px // 4), h // 4, w // 4))
+    common = math.gcd(h, w)
+    factor = max(f for f in range(1, most + 1) if common % f == 0)
     small = cv2.resize(image, (w // factor, h // factor), interpolation=cv2.INTER_AREA)
     small = cv2.GaussianBlur(small, (0, 0), sigma_px / factor, borderType=cv2.BORDER_REFLECT)
     out: np.ndarray = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)

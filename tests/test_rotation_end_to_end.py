@@ -57,15 +57,25 @@ def _tour(world: World, condition: Condition, seed: int, lamp: float = 1.0) -> T
     return visits
 
 
-#: (condition, seed, lamp strength). Known failure under the lamp (issue 20, see
-#: docs/lighting.md): in noise seed 1 the return to the capped entry S scores 0.25 by
-#: NCC, below different junctions, and its two-view fit turns it by half a turn; the
-#: same tour evenly lit is right.
+#: (condition, seed, lamp strength) of the tours.
 TOURS = [
     (Condition.NOISE, 0, 1.0),
     (Condition.NOISE, 1, 0.0),
-    pytest.param(Condition.NOISE, 1, 1.0, marks=pytest.mark.xfail(strict=True)),
+    (Condition.NOISE, 1, 1.0),
     (Condition.PERFECT, 0, 1.0),
+]
+
+#: The tours as the bare localizer decides them. Known failure under the lamp (issue 20,
+#: see docs/lighting.md): in noise seed 1 the return to the capped entry S scores 0.21
+#: by NCC, below different junctions, so it is not among the candidates the two-view
+#: check fits; the same tour evenly lit is right. (Its pairs all fit, since the lamp's
+#: normalisation blurs at a whole factor, stop 35: before, the fit of two visits of C
+#: turned them by half a turn.)
+LOCALIZER_TOURS = [
+    pytest.param(*tour, marks=pytest.mark.xfail(strict=True))
+    if tour == (Condition.NOISE, 1, 1.0)
+    else tour
+    for tour in TOURS
 ]
 
 
@@ -96,7 +106,7 @@ def test_every_pair_of_visits_of_a_junction(
     assert max(errors) < TOLERANCE_RAD, (errors, paper_errors)
 
 
-@pytest.mark.parametrize(("condition", "seed", "lamp"), TOURS)
+@pytest.mark.parametrize(("condition", "seed", "lamp"), LOCALIZER_TOURS)
 def test_the_localizer_reports_the_two_view_rotation(
     paper_world: World, condition: Condition, seed: int, lamp: float
 ) -> None:

@@ -16,6 +16,7 @@ from pipemap.localizer import (
     normalised,
     reference_match,
 )
+from pipemap.localizer import illumination as illumination_module
 from pipemap.localizer import verify as verify_module
 from tests.localizer.synthetic import ROWS, WIDTH, panorama, sweep
 
@@ -115,3 +116,36 @@ def test_under_a_lamp_a_failed_fit_is_tried_again_at_any_rotation(
     decision = localizer.localize(sweep(panorama(7), turn=11), None)
     assert decision.known is lamp
     assert (None in guesses) is lamp
+
+
+@pytest.mark.parametrize(
+    ("shape", "factor"),
+    [((400, 400), 5), ((200, 200), 2), ((400, 300), 4), ((96, 96), 1), ((401, 397), 1)],
+)
+def test_the_blur_shrinks_by_a_whole_factor(
+    shape: tuple[int, int], factor: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The illumination estimate is blurred on an image shrunk by the largest whole
+    factor up to sigma/4 that divides both sides: whole blocks of pixels averaged, so
+    the small grid lies on the large one (a factor of 400/66 = 6.06 did not), and
+    close to the blur at full size."""
+    sizes: list[tuple[int, int]] = []
+    real_resize = illumination_module.cv2.resize
+
+    def recording_resize(image: np.ndarray, size: tuple[int, int], **kwargs: object) -> np.ndarray:
+        sizes.append(size)
+        return real_resize(image, size, **kwargs)
+
+    monkeypatch.setattr(illumination_module.cv2, "resize", recording_resize)
+    h, w = shape
+    sigma = IlluminationConfig().sigma_fraction * w
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    image = (100 + 60 * np.sin(x / 17.0) * np.cos(y / 23.0) + 0.2 * x).astype(np.float32)
+    blurred = illumination_module._blurred(image, sigma)
+    assert sizes[0] == (w // factor, h // factor)
+    assert sizes[0][0] * factor == w and sizes[0][1] * factor == h
+    exact = illumination_module.cv2.GaussianBlur(
+        image, (0, 0), sigma, borderType=illumination_module.cv2.BORDER_REFLECT
+    )
+    inner = (slice(h // 8, h - h // 8), slice(w // 8, w - w // 8))
+    assert float(np.abs(blurred - exact)[inner].max()) < 1.0  # grey levels
