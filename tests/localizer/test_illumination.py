@@ -149,3 +149,18 @@ def test_the_blur_shrinks_by_a_whole_factor(
     )
     inner = (slice(h // 8, h - h // 8), slice(w // 8, w - w // 8))
     assert float(np.abs(blurred - exact)[inner].max()) < 1.0  # grey levels
+
+
+def test_every_pixel_is_the_documented_quotient_bit_for_bit() -> None:
+    """``level * (image + floor) / (blur + floor)``, clipped: computed in place, it must
+    be the very float32 result of the formula as written (the map bytes of every
+    lamp-lit log depend on it)."""
+    config = IlluminationConfig(floor=3.0, level=90.0)
+    s = _lit(sweep(panorama(6)), _vignette())
+    out = normalised(s, config).images
+    sigma = config.sigma_fraction * s.width
+    for image, got in zip(np.asarray(s.images, dtype=np.float32), out, strict=True):
+        light = illumination_module._blurred(image, sigma)
+        want = np.clip(config.level * (image + config.floor) / (light + config.floor), 0.0, 255.0)
+        assert want.dtype == got.dtype == np.float32
+        assert np.array_equal(want, got)
