@@ -62,15 +62,21 @@ def _blurred(image: np.ndarray, sigma_px: float) -> np.ndarray:
     shrinking averages whole blocks of pixels: OpenCV's ``INTER_AREA`` then takes its
     fast path (0.06 ms for a 400 px image by 5, against 0.32 ms by 400/66 = 6.06, the
     factor before stop 35), and the small image's pixels lie on the large one's grid.
-    Sides with no common divisor up to sigma/4 are blurred at full size: right, slower.
+    Sides with no common divisor of at least half of sigma/4 (401 by 397 px, say) are
+    first extended by reflection at the bottom and right to multiples of sigma/4:
+    blurred at full size they would cost a hundred times as much.
     """
     h, w = image.shape
     most = max(1, min(int(sigma_px // 4), h // 4, w // 4))
     common = math.gcd(h, w)
     factor = max(f for f in range(1, most + 1) if common % f == 0)
-    small = cv2.resize(image, (w // factor, h // factor), interpolation=cv2.INTER_AREA)
+    if 2 * factor < most:
+        factor = most
+        image = cv2.copyMakeBorder(image, 0, -h % factor, 0, -w % factor, cv2.BORDER_REFLECT)
+    rows, cols = image.shape
+    small = cv2.resize(image, (cols // factor, rows // factor), interpolation=cv2.INTER_AREA)
     small = cv2.GaussianBlur(small, (0, 0), sigma_px / factor, borderType=cv2.BORDER_REFLECT)
-    out: np.ndarray = cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+    out: np.ndarray = cv2.resize(small, (cols, rows), interpolation=cv2.INTER_LINEAR)[:h, :w]
     return out
 
 

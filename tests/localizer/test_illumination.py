@@ -120,7 +120,7 @@ def test_under_a_lamp_a_failed_fit_is_tried_again_at_any_rotation(
 
 @pytest.mark.parametrize(
     ("shape", "factor"),
-    [((400, 400), 5), ((200, 200), 2), ((400, 300), 4), ((96, 96), 1), ((401, 397), 1)],
+    [((400, 400), 5), ((200, 200), 2), ((400, 300), 4), ((96, 96), 1), ((401, 397), 6)],
 )
 def test_the_blur_shrinks_by_a_whole_factor(
     shape: tuple[int, int], factor: int, monkeypatch: pytest.MonkeyPatch
@@ -128,7 +128,9 @@ def test_the_blur_shrinks_by_a_whole_factor(
     """The illumination estimate is blurred on an image shrunk by the largest whole
     factor up to sigma/4 that divides both sides: whole blocks of pixels averaged, so
     the small grid lies on the large one (a factor of 400/66 = 6.06 did not), and
-    close to the blur at full size."""
+    close to the blur at full size. Sides with no such divisor of at least half of
+    sigma/4 (401 by 397 px) are extended to multiples of sigma/4 first, and the result
+    is cut back to the image's own size."""
     sizes: list[tuple[int, int]] = []
     real_resize = illumination_module.cv2.resize
 
@@ -142,8 +144,10 @@ def test_the_blur_shrinks_by_a_whole_factor(
     y, x = np.mgrid[0:h, 0:w].astype(np.float32)
     image = (100 + 60 * np.sin(x / 17.0) * np.cos(y / 23.0) + 0.2 * x).astype(np.float32)
     blurred = illumination_module._blurred(image, sigma)
-    assert sizes[0] == (w // factor, h // factor)
-    assert sizes[0][0] * factor == w and sizes[0][1] * factor == h
+    padded_w, padded_h = w + -w % factor, h + -h % factor
+    assert sizes[0] == (padded_w // factor, padded_h // factor)
+    assert padded_w - w < factor and padded_h - h < factor
+    assert blurred.shape == image.shape
     exact = illumination_module.cv2.GaussianBlur(
         image, (0, 0), sigma, borderType=illumination_module.cv2.BORDER_REFLECT
     )
