@@ -48,7 +48,8 @@ def add_match(sub: Subparsers) -> None:
     p.add_argument(
         "--every-offset",
         action="store_true",
-        help="fast path: refine every cyclic offset, not only the two most promising",
+        help="fast path: refine every cyclic offset (as the default does; --robust refines "
+        "the two most promising only)",
     )
     p.add_argument(
         "--reference",

@@ -105,3 +105,27 @@ def test_one_rotation_convention(
     # The recorded camera yaws (ground truth) agree on the sign and size.
     true_turn = wrap_angle_rad(paper_sets["1"].yaw_rad - paper_sets["2"].yaw_rad)
     assert abs(wrap_angle_rad(visit["rotation_two_view_rad"] - true_turn)) < 0.1
+
+
+@pytest.mark.parametrize(
+    ("flag", "other", "default"), [("--fov-deg", "60", "80"), ("--keep-top", "0.75", "0.5")]
+)
+def test_the_camera_flags_reach_the_map(
+    flag: str, other: str, default: str, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """The camera's field of view and kept part are the flags' values: the default's
+    value given explicitly is the default's map, another value another map (a revisit's
+    similarity and rotation move with them)."""
+    dirs = [str(PAPER_SETS / n) for n in ("1", "2", "1_noise")]
+
+    def mapped(*flags: str) -> dict[str, object]:
+        status, out, err = run(["map", *dirs, "--json", *flags], capfd)
+        assert status == 0, err
+        doc: dict[str, object] = json.loads(out)
+        return doc
+
+    plain = mapped()
+    assert mapped(flag, default) == plain
+    changed = mapped(flag, other)
+    assert changed != plain
+    assert changed["visits"][2]["known"]  # type: ignore[index]

@@ -9,7 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pipemap.imagesets import load_image_set
+from pipemap.localizer import FastConfig
+from pipemap.localizer.fastmatch import pairwise_matches
+from pipemap.localizer.presets import (
+    ROBUST_FAST,
+    ROBUST_HIGHPASS_FRACTION,
+    ROBUST_ZOOMS,
+)
 from tests.cli.common import COUNT, WIDTH_PX, make_set, run, textures, write_set
+from tests.conftest import PAPER_SETS
 
 #: The columns of the text table: the keys of a JSON pair but the pinhole rotation,
 #: which only ``--json`` reports.
@@ -129,3 +138,72 @@ def test_match_table(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     assert rows[0][3] == "2" and rows[0][-1] == "yes"
     assert rows[1][-1] == "no" and rows[2][-1] == "no"
     assert lines[4:] == ["threshold 0.36; 3 pairs"]
+
+
+#: A pair of the paper's sets (different junctions) on which every similarity flag
+#: moves the result, ``--every-offset`` included: under ``--robust`` only the two most
+#: promising offsets are refined, and here the best one is not among them.
+FLAG_PAIR = ("1_active", "4")
+
+
+def _api_pair(config: FastConfig, every_offset: bool = False) -> tuple[float, int]:
+    sets = [load_image_set(PAPER_SETS / name) for name in FLAG_PAIR]
+    match = pairwise_matches(sets, config, every_offset=every_offset)[(0, 1)]
+    return round(match.similarity, 6), match.image_shift  # as the JSON rounds it
+
+
+_ROBUST = FastConfig(
+    zooms=ROBUST_ZOOMS, highpass_fraction=ROBUST_HIGHPASS_FRACTION, baseline=True, **ROBUST_FAST
+)
+
+
+@pytest.mark.parametrize(
+    ("flags", "config", "every_offset", "without"),
+    [
+        (["--downsample", "2"], FastConfig(fine_downsample=2), False, FastConfig()),
+        (["--highpass", "0.125"], FastConfig(highpass_fraction=0.125), False, FastConfig()),
+        (["--zoom", "1.15,1.3"], FastConfig(zooms=(1.15, 1.3)), False, FastConfig()),
+        (["--baseline"], FastConfig(baseline=True), False, FastConfig()),
+        (["--robust"], _ROBUST, False, FastConfig()),
+        (["--robust", "--every-offset"], _ROBUST, True, _ROBUST),
+    ],
+    ids=["downsample", "highpass", "zoom", "baseline", "robust", "every-offset"],
+)
+def test_each_similarity_flag_reaches_the_matcher(
+    flags: list[str],
+    config: FastConfig,
+    every_offset: bool,
+    without: FastConfig,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    """The command's pair is the library's with the flag's setting, and not the one
+    without the flag: a flag the command dropped would fail here."""
+    dirs = [str(PAPER_SETS / name) for name in FLAG_PAIR]
+    (pair,) = match_json([*dirs, *flags], capfd)["pairs"]
+    wanted = _api_pair(config, every_offset)
+    assert (pair["similarity"], pair["image_shift"]) == wanted
+    assert wanted != _api_pair(without)
+
+
+def test_the_field_of_view_flag_turns_the_rotation(capfd: pytest.CaptureFixture[str]) -> None:
+    """``--fov-deg`` sets how far a pixel of shift turns: the rotations are the
+    library's for sets of that field of view, not those of the default 80 degrees."""
+    dirs = [str(PAPER_SETS / name) for name in ("1", "1_noise")]
+    (pair,) = match_json([*dirs, "--fov-deg", "60"], capfd)["pairs"]
+    sets = [load_image_set(d, fov_rad=math.radians(60.0)) for d in dirs]
+    wanted = pairwise_matches(sets)[(0, 1)]
+    default = pairwise_matches([load_image_set(d) for d in dirs])[(0, 1)]
+    assert pair["rotation_rad"] == round(wanted.rotation_rad, 6)
+    assert pair["rotation_pinhole_rad"] == round(wanted.rotation_pinhole_rad, 6)
+    assert round(default.rotation_rad, 6) != pair["rotation_rad"]
+
+
+def test_the_kept_part_flag_sets_what_is_matched(capfd: pytest.CaptureFixture[str]) -> None:
+    """``--keep-top`` sets how much of each image, from the top, is matched."""
+    dirs = [str(PAPER_SETS / name) for name in FLAG_PAIR]
+    (pair,) = match_json([*dirs, "--keep-top", "0.75"], capfd)["pairs"]
+    sets = [load_image_set(d, keep_top_fraction=0.75) for d in dirs]
+    wanted = pairwise_matches(sets)[(0, 1)]
+    default = pairwise_matches([load_image_set(d) for d in dirs])[(0, 1)]
+    assert pair["similarity"] == round(wanted.similarity, 6)
+    assert round(default.similarity, 6) != pair["similarity"]
