@@ -5,7 +5,7 @@ where the robot is (or is told to be wrong) feeds the real map and explorer."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import pytest
 
@@ -276,6 +276,17 @@ def test_the_odometry_tolerance_is_the_configured_one() -> None:
     )
     assert tight.run() is ExploreEnd.INCONSISTENT
     assert "from where it was by odometry" in tight.explorer.inconsistencies[0]
+    # The same radius growing by as much per metre as the robot drifts: within it,
+    # unless the growth is capped below the drift.
+    grown = ExploreConfig(odometry_radius_m=0.1, drift_per_m=0.05, odometry_limit_m=10.0)
+    assert Walk(build_network("paper"), drift_per_m=0.05, config=grown).run() is (
+        ExploreEnd.FINISHED
+    )
+    capped = Walk(
+        build_network("paper"), drift_per_m=0.05, config=replace(grown, odometry_limit_m=0.15)
+    )
+    assert capped.run() is ExploreEnd.INCONSISTENT
+    assert "from where it was by odometry" in capped.explorer.inconsistencies[0]
     # A radius wider than the network: every new junction lies "at" a known one.
     wide = Walk(
         build_network("paper"),

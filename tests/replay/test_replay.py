@@ -261,6 +261,18 @@ def test_an_active_run_makes_the_probe_moves_and_replay_answers_them_from_the_lo
         ]
 
 
+def test_no_active_vision_asks_for_no_probe() -> None:
+    """The stored active run's weak decisions take probe sweeps from the log (10 of
+    them); with ``--no-active-vision`` none is asked for, and those decisions stand on
+    the visit's own sweep."""
+    log = str(RECORDINGS / "paper_active.mcap")
+    default, without = (pipemap("replay", log, *flags) for flags in ((), ("--no-active-vision",)))
+    assert default.returncode == 0 and without.returncode == 0, without.stderr
+    probes = [len(v["probes"]) for v in json.loads(default.stdout)["visits"]]
+    assert sum(probes) > 0
+    assert [len(v["probes"]) for v in json.loads(without.stdout)["visits"]] == [0] * len(probes)
+
+
 def _probe_sweep(kind: str, yaw: float, forward: float = 0.0, left: float = 0.0) -> LoggedSweep:
     frames = np.zeros((6, 8, 8), np.uint8)
     frames.setflags(write=False)
