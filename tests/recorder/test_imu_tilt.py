@@ -93,3 +93,13 @@ def test_a_level_robot_logs_zero_tilt(tmp_path: Path) -> None:
     imu, true = _logged(path)
     assert imu and all(v == (0.0, 0.0) for v in imu + true)
     assert all(s.imu_tilt_rad == (0.0, 0.0) for s in _sweeps(path))
+
+
+def test_the_command_line_tilts_the_robot(tmp_path: Path) -> None:
+    """``pipemap record --tilt-deg 3`` records the tilted robot, seeded within 3 degrees."""
+    from tests.logs import record
+
+    path = tmp_path / "cli.mcap"
+    done = record(path, "--tilt-deg", "3")
+    assert done.returncode == 0, done.stderr
+    assert _checked_tilt(path) == 13
