@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from pipemap.localizer import twoview
 from pipemap.localizer.epipolar import _levelling
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.keymatch import _matches
@@ -372,6 +373,39 @@ def test_overlapping_images_are_the_neighbours_the_rotation_brings() -> None:
     ]
     unplaced = SweepFeatures(six.bearings, six.descriptors, PIXEL_RAD)
     assert overlapping_images(unplaced, six, 0.0, 0.3) is None
+
+
+def test_the_overlap_margin_widens_the_images_compared() -> None:
+    """Half an image step off (30 degrees), each image looks between two of the other
+    sweep's, 30 degrees from each and 90 from the next: within the field of view (80
+    degrees) alone, two images; with a margin of 0.3 rad for the parallax, four."""
+    six = _sweep_layout(6, math.radians(80.0))
+    half_step = math.pi / 6
+    for margin, reached in ((0.0, 2), (0.3, 4)):
+        overlap = overlapping_images(six, six, half_step, margin)
+        assert overlap is not None
+        assert [len(row) for row in overlap] == [reached] * 6
+
+
+def test_a_fit_compares_the_images_its_configured_margin_reaches(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``TwoViewConfig.overlap_margin_rad`` is the margin a fit guided by a rotation
+    asks for; ``overlap_only=False`` asks for none (every image with every image)."""
+    asked: list[float] = []
+    real = twoview.overlapping_images
+
+    def spy(a: SweepFeatures, b: SweepFeatures, rotation: float, margin: float):  # type: ignore[no-untyped-def]
+        asked.append(margin)
+        return real(a, b, rotation, margin)
+
+    monkeypatch.setattr(twoview, "overlapping_images", spy)
+    six = _sweep_layout(6, math.radians(80.0))
+    fit_two_view(six, six, TwoViewConfig(overlap_margin_rad=0.123), guess_rad=0.0)
+    assert asked and set(asked) == {0.123}
+    asked.clear()
+    fit_two_view(six, six, TwoViewConfig(overlap_only=False), guess_rad=0.0)
+    assert asked == []
 
 
 def test_matching_skips_images_that_cannot_overlap() -> None:
