@@ -117,6 +117,24 @@ class Decision:
         """Number of probes requested but not supplied."""
         return sum(1 for p in self.probes if p.similarity is None)
 
+    def describe(self) -> str:
+        """The decision in one line, as ``pipemap -v`` prints it: the junction, new
+        or known, the best candidate's similarity and margin, the two-view fit, the
+        probes taken and the candidates whose ports did not line up."""
+        parts = [f"junction {self.node} {'known' if self.known else 'new'}"]
+        if self.candidate is not None:
+            margin = "" if self.margin is None else f", margin {self.margin:.3f}"
+            parts.append(f"best candidate {self.candidate} at {self.similarity:.3f}{margin}")
+        if self.two_view is not None:
+            fit = self.two_view
+            parts.append(f"two-view {fit.inliers} inliers, turn {fit.rotation_rad:+.4f} rad")
+        if self.probes:
+            answered = len(self.probes) - self.missing_probes
+            parts.append(f"{len(self.probes)} probes asked, {answered} answered")
+        for node, why in self.rejected:
+            parts.append(f"{node} rejected: {why}")
+        return "; ".join(parts)
+
 
 def best_candidate(
     matches: list[SetMatch], exclude: int | None = None

@@ -19,6 +19,7 @@ function needs them.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,9 @@ from pipemap.replay import score as _score
 
 if TYPE_CHECKING:
     from pipemap.recorder import Progress, RecordResult, RecordSettings
+
+#: ``pipemap -v`` prints each folder's decision (stderr).
+_LOG = logging.getLogger(__name__)
 
 __all__ = [
     "ImageSet",
@@ -180,6 +184,7 @@ def map_image_sets(
         notes = read_robot_notes(name)
         decision = localizer.localize(image_set, None, notes.exits_rad, notes.odometer_m)
         visits.append((str(name), decision))
+        _LOG.debug("%s: %s", name, decision.describe())
         if notes.departure_rad is not None:
             localizer.depart(notes.departure_rad)
     return map_document(localizer.map, visits)

@@ -20,6 +20,7 @@ to drive each pipe at its cruising speed.
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -56,6 +57,9 @@ from pipemap.sim.stream import (
     TruePose,
 )
 from pipemap.sim.world import CameraSpec, World
+
+#: ``pipemap -v`` prints each online decision (stderr).
+_LOG = logging.getLogger(__name__)
 
 __all__ = [
     "Progress",
@@ -145,6 +149,7 @@ class _OnlineSink:
         threshold = self.localizer.config.threshold
         message = messages.decision_message(self.now_ns, visit_id, decision, threshold)
         self.put(ReadyMessage.of(self.now_ns, Topic.DECISION, message))
+        _LOG.debug("visit %d at %.1f s: %s", visit_id, self.now_ns / 1e9, decision.describe())
 
     def __call__(self, record: SimRecord) -> None:
         self.now_ns = max(self.now_ns, record.t_ns)

@@ -20,6 +20,7 @@ broken there: the visits either side are not joined by an edge.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from collections import deque
@@ -84,6 +85,9 @@ REPLAY_TOPICS = (Topic.SWEEP, Topic.IMAGE, Topic.NODE, Topic.EVENTS)
 #: rad is under a third of a pixel at 400 px (80 degrees over 400 columns).
 _PROBE_MATCH = 1e-9
 _PROBE_TURN_MATCH_RAD = 1e-3
+
+#: ``pipemap -v`` prints each decision (stderr).
+_LOG = logging.getLogger(__name__)
 
 
 def _makes_probes(metadata: dict[str, str] | None) -> bool:
@@ -323,6 +327,8 @@ class _Replay:
                 dict(localizer.last_phases),
             )
         )
+        if _LOG.isEnabledFor(logging.DEBUG):
+            _LOG.debug("visit %d: %s; %.1f ms", sweep.visit_id, decision.describe(), latency * 1e3)
         self.last_visit = sweep.visit_id
         if self.progress is not None:
             self.progress(len(self.decided), self.total)

@@ -56,11 +56,11 @@ def _run(argv: Sequence[str] | None) -> int:
     args = build_parser().parse_args(argv)
     keep_freed_memory()  # the same results, found sooner (pipemap.allocator)
     apply_presets(args)
+    # Other libraries' messages stay at warnings: -v is for pipemap's own decisions.
     logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.WARNING,
-        format="pipemap: %(levelname)s: %(message)s",
-        stream=sys.stderr,
+        level=logging.WARNING, format="pipemap: %(levelname)s: %(message)s", stream=sys.stderr
     )
+    logging.getLogger("pipemap").setLevel(logging.DEBUG if args.verbose else logging.WARNING)
     module, function = COMMANDS[args.command].split(":")
     runner: Runner = getattr(importlib.import_module(module), function)
     return runner(args, sys.stdout, sys.stderr)

@@ -42,7 +42,12 @@ def build_parser() -> argparse.ArgumentParser:
         description="Topological localization and mapping of robots in buried pipe networks.",
     )
     parser.add_argument("--version", action="version", version=f"pipemap {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    parser.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="print each decision as it is made (replay, score, record, map) to stderr",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     sub.required = True
     for add_command in _COMMANDS:

@@ -97,3 +97,32 @@ def test_probe_plan_fields_are_exclusive() -> None:
     assert (back.forward_m, back.left_m) == (-0.1, 0.0)
     assert (left.forward_m, left.left_m) == (0.0, 0.1)
     assert (right.forward_m, right.left_m) == (0.0, -0.1)
+
+
+def test_a_decision_describes_itself_in_one_line() -> None:
+    """What ``pipemap -v`` prints: only what the decision holds, in a fixed order."""
+    from pipemap.localizer.decision import Decision, ProbeOutcome
+    from pipemap.localizer.twoview import TwoViewFit
+
+    new = Decision(node=3, known=False, candidate=None, similarity=0.0, margin=None, match=None)
+    assert new.describe() == "junction 3 new"
+    asked = (
+        ProbeOutcome(ProbeRequest(ProbeKind.ROTATE, yaw_rad=1.0), 0.31, False),
+        ProbeOutcome(ProbeRequest(ProbeKind.FORWARD, forward_m=0.03), None, False),
+    )
+    known = Decision(
+        node=1,
+        known=True,
+        candidate=1,
+        similarity=0.5123,
+        margin=0.25,
+        match=_match(0.5123),
+        probes=asked,
+        two_view=TwoViewFit(rotation_rad=-1.5682, direction_rad=0.0, inliers=175, matches=300),
+        rejected=((4, "exits are 0.51 rad off"),),
+    )
+    assert known.describe() == (
+        "junction 1 known; best candidate 1 at 0.512, margin 0.250; "
+        "two-view 175 inliers, turn -1.5682 rad; 2 probes asked, 1 answered; "
+        "4 rejected: exits are 0.51 rad off"
+    )
