@@ -112,8 +112,12 @@ def local(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, s
     )
     assert status == 130, interrupted
     assert "interrupted" in interrupted
-    resumed = pipemap("batch", str(spec), "--out", str(out), "--keep-logs", "--resume")
+    # One run at a time (the default is one per core): the summary says so.
+    resumed = pipemap(
+        "batch", str(spec), "--out", str(out), "--keep-logs", "--resume", "--workers", "1"
+    )
     assert resumed.returncode == 0, resumed.stderr
+    assert "; 1 workers, " in resumed.stdout
     return out, interrupted, resumed.stderr
 
 
