@@ -241,6 +241,31 @@ def test_no_route_in_a_map_without_port_edges() -> None:
     assert nearest_route(m, 0, [1]) is None
 
 
+def test_a_pipe_of_unknown_length_counts_one_metre() -> None:
+    """From r0c0 to r0c1 of a grid: the pipe between them, its length unknown, or the
+    way round by three pipes whose lengths are known. The unknown one counts 1 m: it
+    wins against 3 x 1 m, and loses against 3 x 0.2 m."""
+    walk, topomap = _explored("grid:3x3")
+    a, b, c, d = (walk.node_of[n] for n in ("r0c0", "r0c1", "r1c0", "r1c1"))
+    around = {frozenset(p) for p in ((a, c), (c, d), (d, b))}
+
+    def planned(around_m: float) -> list[int]:
+        doc = topomap.to_dict()
+        for edge in doc["edges"]:
+            pair = frozenset((edge["u"], edge["v"]))
+            if pair == {a, b}:
+                edge["length_m"] = None
+            elif pair in around:
+                edge["length_m"] = around_m
+        m = TopoMap.from_dict(doc)
+        route = plan_route(m, a, b)
+        assert route is not None
+        return [step.node for step in route]
+
+    assert planned(1.0) == [a, b]
+    assert planned(0.2) == [a, c, d, b]
+
+
 def test_the_nearest_goal_wins_ties_to_the_lowest_node() -> None:
     walk, m = _explored("paper")
     a, b, d = walk.node_of["A"], walk.node_of["B"], walk.node_of["D"]

@@ -36,6 +36,20 @@ def test_exits_give_a_new_junction_its_ports() -> None:
     assert loc.map.visit_records[0].departure_port == 2
 
 
+@pytest.mark.parametrize(
+    ("off_rad", "port"), [(0.5, 2), (-0.5, 2), (0.55, None), (0.8, None), (1.2, 1)]
+)
+def test_a_departure_is_a_port_only_within_30_degrees_of_its_exit(
+    off_rad: float, port: int | None
+) -> None:
+    """The robot leaves by the exit nearest its departure heading, if within 30
+    degrees of it; further off from every exit, which pipe it took is not known."""
+    loc = Localizer()
+    loc.localize(junction(0), exits_rad=(0.0, -PI / 2, PI))
+    assert loc.depart(-PI / 2 + off_rad) == port
+    assert loc.map.visit_records[0].departure_port == port
+
+
 def test_a_revisit_whose_exits_agree_is_known_and_its_exits_get_ports() -> None:
     loc = Localizer()
     loc.localize(junction(0), exits_rad=TEE_EXITS)
