@@ -105,6 +105,24 @@ def test_entrance_drives_the_radius_with_odometry_error(paper_world) -> None:  #
     assert 0.0 < max(offsets) < 0.05
 
 
+def test_the_entrance_slip_is_the_along_pipe_error(paper_world) -> None:  # type: ignore[no-untyped-def]
+    """Driving the radius in from the pipe's mouth, the robot ends short or long by
+    the wheel slip (``entrance_slip``, 5% of the radius) and aside by the heading's
+    drift (0.03 rad): across the tour, the along-pipe errors spread as the slip."""
+    config = SimConfig(Condition.ENTRANCE, seed=6, camera=SMALL)
+    radius = paper_world.network.diameter_m / 2.0
+    along, aside = [], []
+    for v in Episode(paper_world, config).visits():
+        n = paper_world.network.node(v.node)
+        dx, dy = v.pose.x_m - n.x_m, v.pose.y_m - n.y_m
+        heading = v.pose.yaw_rad
+        along.append(dx * math.cos(heading) + dy * math.sin(heading))
+        aside.append(-dx * math.sin(heading) + dy * math.cos(heading))
+    spread = float(np.std(along)) / radius
+    assert 0.5 * config.entrance_slip < spread < 1.6 * config.entrance_slip
+    assert float(np.std(aside)) / radius < 0.06
+
+
 def test_probes_only_in_the_active_condition(paper_world) -> None:  # type: ignore[no-untyped-def]
     perfect = next(iter(Episode(paper_world, SimConfig(Condition.PERFECT, camera=SMALL)).visits()))
     with pytest.raises(SimError):
