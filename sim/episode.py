@@ -76,7 +76,6 @@ class SimConfig:
     camera_height_m: float = 0.05
     noise_offset_m: float = 0.03
     entrance_slip: float = 0.05
-    texture_px: int = 512
     align_sweeps: bool = True
     #: The robot off level: at each visit its roll and pitch are drawn uniformly
     #: within +-this (floor deposits, a sagging pipe); 0 stands it level.
