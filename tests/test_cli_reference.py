@@ -52,3 +52,36 @@ def test_the_check_catches_an_undocumented_flag(monkeypatch: pytest.MonkeyPatch)
     generated = reference.reference_markdown()
     assert "`--not-in-the-manual`" in generated
     assert generated != PAGE.read_text()
+
+
+def _test_sources() -> str:
+    here = Path(__file__).resolve()
+    return "\n".join(
+        p.read_text() for p in sorted(PAGE.parents[1].glob("tests/**/*.py")) if p != here
+    )
+
+
+def _unexercised(parser_of: dict[str, argparse.ArgumentParser], sources: str) -> list[str]:
+    """``command flag`` of every flag no test source passes (in any of its spellings)."""
+    missing = []
+    for command, parser in sorted(parser_of.items()):
+        for action in parser._actions:
+            if isinstance(action, argparse._HelpAction | argparse._SubParsersAction):
+                continue
+            spellings = action.option_strings
+            if spellings and not any(f'"{flag}"' in sources for flag in spellings):
+                missing.append(f"{command} {spellings[-1]}".strip())
+    return missing
+
+
+def test_every_flag_is_passed_by_some_test() -> None:
+    """A tripwire, not the proof: a flag no test even passes cannot have a test that
+    fails when the command ignores it. (Each flag's own test is named in the
+    CHANGELOG; they were found by making the command line drop one flag at a time.)"""
+    assert _unexercised(_commands(), _test_sources()) == []
+
+
+def test_the_tripwire_catches_a_flag_no_test_passes() -> None:
+    parser = build_parser()
+    parser.add_argument("--never-passed", action="store_true", help="new")
+    assert _unexercised({"": parser}, _test_sources()) == ["--never-passed"]
