@@ -183,3 +183,23 @@ def test_a_blocking_deposit_is_given_up_and_the_run_finishes_without_it() -> Non
     assert "F" not in swept and set(swept) == set("SABCDE")
     assert swept[-1] == "S"
     assert result.duration_ns < default_time_limit_ns(network)
+
+
+def test_the_watchdog_ends_a_run_that_cannot_get_past_as_stuck() -> None:
+    """The last resort: a robot that never counts its stall (the recovery's stall
+    time beyond any run) pushes against a deposit it cannot climb, its wheels
+    still; after ``stuck_after_ns`` of that the run ends ``stuck``, not at the time
+    limit."""
+    from pipemap.sim.obstacles import ObstacleKind
+    from pipemap.sim.recovery import RecoveryConfig
+
+    network = build_network("paper")
+    deposit = _deposit(network, "C", "F", ObstacleKind.BLOCKING)
+    config = ExplorerConfig(stuck_after_ns=5_000_000_000)
+    never = RecoveryConfig(stall_ns=10**15)
+    with World(network, seed=0, texture_px=32, obstacles=(deposit,)) as world:
+        result = autonomous_run(world, TINY, seed=1, config=config, recovery=never)
+    assert result.status is RunStatus.STUCK
+    assert result.events[-1][1] == "watchdog: stuck"
+    assert not any(t.startswith("stall") for _, t in result.events)
+    assert result.duration_ns < default_time_limit_ns(network)
