@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 
@@ -203,3 +204,18 @@ def test_the_watchdog_ends_a_run_that_cannot_get_past_as_stuck() -> None:
     assert result.events[-1][1] == "watchdog: stuck"
     assert not any(t.startswith("stall") for _, t in result.events)
     assert result.duration_ns < default_time_limit_ns(network)
+
+
+def test_the_right_hand_rule_finds_its_start_within_the_configured_radius(paper_world) -> None:  # type: ignore[no-untyped-def]
+    """The explorer's ``start_radius_m`` and ``drift_per_m`` are the rule's: with both
+    at 0 no return is close enough to be the start (dead reckoning is never exact),
+    so the robot goes round again until the time limit, where the defaults stop it
+    back at S after 13 sweeps (the tests above)."""
+    exact = ExplorerConfig(start_radius_m=0.0, drift_per_m=0.0, time_limit_ns=600 * 10**9)
+    result = autonomous_run(paper_world, TINY, seed=1, config=exact)
+    assert result.status is RunStatus.TIME_LIMIT
+    assert len(result.sweeps) > 13
+    # Either alone is enough: 0.3 m, or 5 mm per metre of the 14 m driven.
+    for alone in (replace(exact, start_radius_m=0.3), replace(exact, drift_per_m=0.005)):
+        result = autonomous_run(paper_world, TINY, seed=1, config=alone)
+        assert result.status is RunStatus.FINISHED and len(result.sweeps) == 13
