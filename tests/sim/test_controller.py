@@ -219,3 +219,24 @@ def test_the_right_hand_rule_finds_its_start_within_the_configured_radius(paper_
     for alone in (replace(exact, start_radius_m=0.3), replace(exact, drift_per_m=0.005)):
         result = autonomous_run(paper_world, TINY, seed=1, config=alone)
         assert result.status is RunStatus.FINISHED and len(result.sweeps) == 13
+
+
+def test_the_explorer_bounds_shallow_corners_as_configured(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Every corner the robot centres on (a grid's four) is judged shallow or sharp by
+    the explorer's ``shallow_corner_deg``."""
+    from pipemap.sim import junction_actions
+
+    bounds: list[float] = []
+    real = junction_actions.axes_crossing
+
+    def spy(*args):  # type: ignore[no-untyped-def]
+        bounds.append(args[-1])
+        return real(*args)
+
+    monkeypatch.setattr(junction_actions, "axes_crossing", spy)
+    with World(build_network("grid:2x2"), seed=0, texture_px=32) as world:
+        result = autonomous_run(world, TINY, seed=1, config=ExplorerConfig(shallow_corner_deg=55.0))
+    assert result.status is RunStatus.FINISHED
+    assert bounds and set(bounds) == {55.0}

@@ -52,6 +52,8 @@ def test_shallow_corner_centre_is_where_the_axes_cross(headings: tuple[float, fl
     centre = axes_crossing(samples, forward, walls, up, up, openings, 70.0)
     assert centre is not None
     assert float(np.linalg.norm(centre)) < 0.01
+    # These corners turn by 30-43 degrees: under a bound of 25 they count as sharp.
+    assert axes_crossing(samples, forward, walls, up, up, openings, 25.0) is None
 
 
 @pytest.mark.parametrize("headings", [(0.0, 90.0), (0.0, 180.0)])
