@@ -184,7 +184,8 @@ def map_image_sets(
         notes = read_robot_notes(name)
         decision = localizer.localize(image_set, None, notes.exits_rad, notes.odometer_m)
         visits.append((str(name), decision))
-        _LOG.debug("%s: %s", name, decision.describe())
+        if _LOG.isEnabledFor(logging.DEBUG):
+            _LOG.debug("%s: %s", name, decision.describe())
         if notes.departure_rad is not None:
             localizer.depart(notes.departure_rad)
     return map_document(localizer.map, visits)

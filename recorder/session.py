@@ -149,7 +149,8 @@ class _OnlineSink:
         threshold = self.localizer.config.threshold
         message = messages.decision_message(self.now_ns, visit_id, decision, threshold)
         self.put(ReadyMessage.of(self.now_ns, Topic.DECISION, message))
-        _LOG.debug("visit %d at %.1f s: %s", visit_id, self.now_ns / 1e9, decision.describe())
+        if _LOG.isEnabledFor(logging.DEBUG):
+            _LOG.debug("visit %d at %.1f s: %s", visit_id, self.now_ns / 1e9, decision.describe())
 
     def __call__(self, record: SimRecord) -> None:
         self.now_ns = max(self.now_ns, record.t_ns)
