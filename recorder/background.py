@@ -152,6 +152,10 @@ class BackgroundWriter(FinishesOnExit):
         self._process = subprocess.Popen(
             [
                 sys.executable,
+                # -P: the working folder stays off the module path, so that a run
+                # started from a checkout imports the installed pipemap, not the
+                # checkout's own pipemap/ folder (which lacks the layer packages).
+                "-P",
                 "-m",
                 "pipemap.recorder.writer_process",
                 str(records_read),

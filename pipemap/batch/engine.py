@@ -250,6 +250,20 @@ def _cluster_cpus() -> int:
 
 
 @contextlib.contextmanager
+def _beside_installed_package() -> Iterator[None]:
+    """Hold the working folder at the folder ``pipemap`` was imported from while Ray
+    starts. Ray puts the driver's working folder first on every worker's module path:
+    run from a checkout, the checkout's own ``pipemap/`` folder (which lacks the layer
+    packages an install maps into it) would shadow the installed package."""
+    here = os.getcwd()
+    os.chdir(Path(__file__).resolve().parents[2])
+    try:
+        yield
+    finally:
+        os.chdir(here)
+
+
+@contextlib.contextmanager
 def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
     """Ray started on this machine (``address`` ``None``) or joined at ``address``,
     shut down (or left) at the end; yields how many runs may go at once. An already
@@ -262,17 +276,19 @@ def ray_session(address: str | None, workers: int | None) -> Iterator[int]:
         return
     if address is None:
         cpus = workers or os.cpu_count() or 1
-        ray.init(
-            address="local",
-            num_cpus=cpus,
-            include_dashboard=False,
-            log_to_driver=False,
-            logging_level=logging.ERROR,
-            # Results come back as soon as they are done; logs are tens of MB at most.
-            object_store_memory=512 * 1024 * 1024,
-        )
+        with _beside_installed_package():
+            ray.init(
+                address="local",
+                num_cpus=cpus,
+                include_dashboard=False,
+                log_to_driver=False,
+                logging_level=logging.ERROR,
+                # Results come back as soon as they are done; logs are tens of MB at most.
+                object_store_memory=512 * 1024 * 1024,
+            )
     else:
-        _connect(address)
+        with _beside_installed_package():
+            _connect(address)
         cpus = workers or _cluster_cpus()
     try:
         yield cpus
