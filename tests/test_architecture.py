@@ -1,4 +1,4 @@
-"""The layering of STYLE.md, checked on the source with ``ast``.
+"""The layering the README's "Layout" section states, checked on the source with ``ast``.
 
 Installed, everything lives under ``pipemap``; in the repository the layers keep
 their top-level folders (``sim/``, ``recorder/``, ``replay/``, ``localizer/``), mapped
@@ -11,8 +11,10 @@ is parsed; every import it makes (at module level or inside a function, absolute
 relative, and ``importlib.import_module`` / ``__import__`` of a literal name) is checked
 against the arrows allowed below. The localizer is held to more: only the standard library,
 numpy, scipy, OpenCV and networkx, and nothing that touches files, the wall clock or
-the logging set-up. Every module is at most 500 lines (STYLE.md), but for the few listed
-that are being split. The checker's own tests are in ``test_architecture_checker.py``.
+the logging set-up. Every module is at most 500 lines, but for any listed as being split.
+Both rules come from the team's style guide (``../shared/STYLE.md``, beside the
+checkout, not part of the repository); this docstring and the README restate them.
+The checker's own tests are in ``test_architecture_checker.py``.
 """
 
 from __future__ import annotations
@@ -113,7 +115,8 @@ FILE_CALLS = {
     "codecs": {"open"},
 }
 
-#: Third-party packages the simulator must not know of (STYLE: no MCAP).
+#: Third-party packages the simulator must not know of: it knows nothing of MCAP
+#: (the log format is the recorder's) nor of the viewer.
 SIM_FORBIDDEN_THIRD_PARTY = ("mcap", "mcap_protobuf", "rerun")
 
 
@@ -314,8 +317,8 @@ def test_imports_follow_the_layering(relpath: str) -> None:
 
 # ---------------------------------------------------------------- module size
 
-#: STYLE.md: "Modules of 50 to 500 lines". The upper bound holds for every module of
-#: the packages.
+#: A module is one idea, most of them 50 to 500 lines (the style guide). The upper
+#: bound holds for every module of the packages.
 MAX_MODULE_LINES = 500
 
 #: Modules still over the bound, each being split by a change under way (none since

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
 import pytest
@@ -85,3 +86,69 @@ def test_the_tripwire_catches_a_flag_no_test_passes() -> None:
     parser = build_parser()
     parser.add_argument("--never-passed", action="store_true", help="new")
     assert _unexercised({"": parser}, _test_sources()) == ["--never-passed"]
+
+
+#: The page whose synopsis (its first ``text`` block) lists each command's flags.
+SYNOPSIS_PAGES = {
+    "sim": "simulator.md",
+    "record": "recorder.md",
+    "info": "recorder.md",
+    "view": "view.md",
+    "replay": "replay.md",
+    "score": "replay.md",
+    "match": "imagesets.md",
+    "map": "imagesets.md",
+    "route": "imagesets.md",
+    "batch": "batch.md",
+    "batch-report": "batch.md",
+    "experiment": "batch.md",
+}
+
+
+def _synopsis(command: str) -> str:
+    """The lines of the command's page synopsis that belong to ``pipemap COMMAND``."""
+    page = (PAGE.parent / SYNOPSIS_PAGES[command]).read_text()
+    block = page.split("```text\n", 1)[1].split("```", 1)[0]
+    lines, mine = [], False
+    for line in block.splitlines():
+        if line.startswith("pipemap "):
+            mine = line.split()[1] == command
+        if mine:
+            lines.append(line)
+    assert lines, f"{SYNOPSIS_PAGES[command]}'s synopsis has no pipemap {command}"
+    return "\n".join(lines)
+
+
+def test_every_command_has_a_synopsis_page() -> None:
+    assert set(SYNOPSIS_PAGES) == set(_commands()) - {""}
+
+
+@pytest.mark.parametrize("command", sorted(SYNOPSIS_PAGES))
+def test_the_synopsis_of_a_command_names_every_flag(command: str) -> None:
+    """A page's synopsis drifts from the parser when a flag is added: each flag
+    (any one of its spellings) must be there."""
+    synopsis = _synopsis(command)
+    for action in _commands()[command]._actions:
+        if isinstance(action, argparse._HelpAction) or not action.option_strings:
+            continue
+        assert any(
+            re.search(re.escape(flag) + r"(?![\w-])", synopsis) for flag in action.option_strings
+        ), f"docs/{SYNOPSIS_PAGES[command]}: pipemap {command} lacks {action.option_strings}"
+
+
+def test_the_batch_description_names_every_grid_key() -> None:
+    from pipemap.batch.spec import GRID_KEYS
+
+    description = _commands()["batch"].description or ""
+    missing = [key for key in GRID_KEYS if not re.search(rf"\b{key}\b", description)]
+    assert not missing, f"pipemap batch --help does not name the grid keys {missing}"
+
+
+def test_the_sim_description_names_its_default_condition() -> None:
+    """sim's default condition is placed, so its description must say the tour is the
+    paper's right-most-branch one there, and that --explore is the autonomous run's."""
+    sim = _commands()["sim"]
+    condition = next(a for a in sim._actions if "--condition" in a.option_strings)
+    description = sim.description or ""
+    assert f"{condition.default}, the default" in description
+    assert "right-most-branch tour" in description and "--explore" in description

@@ -88,8 +88,10 @@ def add_sim(sub: Subparsers) -> None:
     p = sub.add_parser(
         "sim",
         help="run a simulated exploration and save its sweeps",
-        description="Explore a pipe network by the right-most-branch rule and save every "
-        "junction sweep as DIR/0001, DIR/0002, ... in the paper's folder layout.",
+        description="Explore a pipe network and save every junction sweep as DIR/0001, "
+        "DIR/0002, ... in the paper's folder layout. The placed conditions (perfect, the "
+        "default; noise, active, entrance) set the robot down at each junction along the "
+        "paper's right-most-branch tour; autonomous drives it, exploring by --explore.",
     )
     _add_run_options(p, "perfect")
     arguments.add_output(

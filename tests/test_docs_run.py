@@ -1,0 +1,215 @@
+"""The manual runs as written: every ``sh`` block of README.md and docs/*.md is run.
+
+A command in the manual is a test, so a page cannot drift from the code. Each page's
+blocks run in order, in one temporary folder (so a later block may read the log an
+earlier one recorded), under ``bash -e -o pipefail``: every command must exit 0. The
+folder links the checkout's ``recordings/``, ``experiments/``, ``benchmarks/`` and
+``docs/``, and the team's ``shared/`` folder sits beside it as ``../shared`` does beside
+the checkout; ``pipemap`` and ``python`` are this interpreter's.
+
+HTML comments on the lines just above a block's fence steer it:
+
+- ``<!-- doc-test: substitute OLD => NEW -->`` runs the block with OLD replaced by NEW
+  (small settings: fewer pixels, a smaller network). OLD must occur in the block.
+- ``<!-- doc-test: skip (REASON) -->`` does not run it; the test of that block is
+  reported skipped with the reason. For blocks that install pipemap (CI runs the Quick
+  start in fresh virtual environments), want several machines, a display, or stop
+  processes that are not theirs.
+
+Blocks that are not commands (a synopsis, an output) are fenced ``text``, not ``sh``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+LINKED = ("recordings", "experiments", "benchmarks", "docs")
+#: Longest one block may take on the busy 2-core machine, with its small settings; a
+#: block that hangs fails here rather than holding the suite.
+BLOCK_TIMEOUT_S = 600
+
+FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.S | re.M)
+MARKER = re.compile(r"^<!--\s*doc-test:\s*(.*?)\s*-->$")
+
+
+@dataclass(frozen=True)
+class Block:
+    """One ``sh`` block: where it is, its commands as they run, and why not, if not."""
+
+    page: Path
+    line: int
+    script: str
+    skip: str | None
+
+    @property
+    def name(self) -> str:
+        return f"{self.page.relative_to(ROOT)}:{self.line}"
+
+
+def _markers(text: str, fence_start: int) -> list[str]:
+    """The doc-test comments on the lines right above a fence, top to bottom."""
+    found: list[str] = []
+    for line in reversed(text[:fence_start].splitlines()):
+        match = MARKER.match(line.strip())
+        if not match:
+            break
+        found.append(match.group(1))
+    return found[::-1]
+
+
+def _substitution(marker: str, where: str) -> tuple[str, str]:
+    body = marker.removeprefix("substitute").strip()
+    old, sep, new = body.partition("=>")
+    if not sep or not old.strip():
+        raise ValueError(f"{where}: a substitution reads 'substitute OLD => NEW': {marker!r}")
+    return old.strip(), new.strip()
+
+
+def parse_blocks(page: Path, text: str) -> list[Block]:
+    """Every ``sh`` block of a page, its markers applied. A marker that is neither a
+    skip nor a substitution, or a substitution whose OLD is not in the block, is an
+    error: the page and its markers must not drift apart either."""
+    blocks: list[Block] = []
+    for fence in FENCE.finditer(text):
+        if fence.group(1) != "sh":
+            continue
+        line = text.count("\n", 0, fence.start()) + 1
+        where = f"{page.name}:{line}"
+        script, skip = fence.group(2), None
+        for marker in _markers(text, fence.start()):
+            if marker.startswith("skip"):
+                reason = re.fullmatch(r"skip\s*\((.+)\)", marker)
+                if not reason:
+                    raise ValueError(f"{where}: a skip names its reason: skip (REASON)")
+                skip = reason.group(1)
+            elif marker.startswith("substitute"):
+                old, new = _substitution(marker, where)
+                if old not in script:
+                    raise ValueError(f"{where}: {old!r} is not in the block to substitute")
+                script = script.replace(old, new)
+            else:
+                raise ValueError(f"{where}: unknown doc-test marker {marker!r}")
+        blocks.append(Block(page, line, script, skip))
+    return blocks
+
+
+def _all_blocks() -> list[Block]:
+    return [b for page in PAGES for b in parse_blocks(page, page.read_text())]
+
+
+def _workspace(tmp_path: Path) -> Path:
+    """A folder with the checkout's data linked in and ``../shared`` beside it."""
+    work = tmp_path / "work"
+    work.mkdir()
+    for name in LINKED:
+        (work / name).symlink_to(ROOT / name)
+    shared = ROOT.parent / "shared"
+    if shared.is_dir():
+        (tmp_path / "shared").symlink_to(shared)
+    return work
+
+
+def _run_page(blocks: list[Block], tmp_path: Path) -> None:
+    work = _workspace(tmp_path)
+    bindir = str(Path(sys.executable).parent)
+    env = {**os.environ, "PATH": bindir + os.pathsep + os.environ.get("PATH", "")}
+    env.pop("PYTHONPATH", None)  # the installed pipemap, as a user runs it
+    for block in blocks:
+        try:
+            done = subprocess.run(
+                ["bash", "-e", "-o", "pipefail", "-c", block.script],
+                cwd=work,
+                env=env,
+                capture_output=True,
+                text=True,
+                timeout=BLOCK_TIMEOUT_S,
+                check=False,
+            )
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"{block.name} did not finish in {BLOCK_TIMEOUT_S} s:\n{block.script}")
+        if done.returncode != 0:
+            pytest.fail(
+                f"{block.name} exited {done.returncode}:\n{block.script}\n"
+                f"--- stdout (end)\n{done.stdout[-2000:]}\n--- stderr (end)\n{done.stderr[-2000:]}"
+            )
+
+
+_BLOCKS = _all_blocks()
+_RUN_PAGES = sorted({b.page for b in _BLOCKS if b.skip is None})
+
+
+@pytest.mark.parametrize("page", _RUN_PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_the_sh_blocks_of_a_page_run(page: Path, tmp_path: Path) -> None:
+    _run_page([b for b in _BLOCKS if b.page == page and b.skip is None], tmp_path)
+
+
+@pytest.mark.parametrize("block", [b for b in _BLOCKS if b.skip is not None], ids=lambda b: b.name)
+def test_a_skipped_block_says_why(block: Block) -> None:
+    pytest.skip(block.skip)
+
+
+# ------------------------------------------------------------- the runner itself
+
+
+def test_markers_substitute_and_skip() -> None:
+    text = (
+        "intro\n\n<!-- doc-test: substitute --resolution 400 => --resolution 32 -->\n"
+        "```sh\npipemap record --resolution 400\n```\n\n"
+        "<!-- doc-test: skip (needs a cluster) -->\n```sh\nray start\n```\n"
+        "```text\npipemap synopsis [--flag]\n```\n"
+    )
+    first, second = parse_blocks(Path("page.md"), text)
+    assert first.script == "pipemap record --resolution 32\n" and first.skip is None
+    assert first.line == 4
+    assert second.skip == "needs a cluster" and second.script == "ray start\n"
+
+
+def test_a_marker_apart_from_its_block_does_not_steer_it() -> None:
+    text = "<!-- doc-test: skip (x) -->\n\nprose\n```sh\ntrue\n```\n"
+    (block,) = parse_blocks(Path("page.md"), text)
+    assert block.skip is None
+
+
+@pytest.mark.parametrize(
+    "marker",
+    [
+        "substitute --px 9 => --px 1",  # not in the block
+        "substitute --px 400",  # no =>
+        "skip",  # no reason
+        "run twice",  # unknown
+    ],
+)
+def test_a_bad_marker_is_an_error(marker: str) -> None:
+    text = f"<!-- doc-test: {marker} -->\n```sh\npipemap record --px 400\n```\n"
+    with pytest.raises(ValueError):
+        parse_blocks(Path("page.md"), text)
+
+
+def test_a_failing_command_fails_the_page(tmp_path: Path) -> None:
+    """bash -e: a failing command in the middle of a block fails it, not only the last."""
+    block = Block(ROOT / "README.md", 1, "false\ntrue\n", None)
+    with pytest.raises(pytest.fail.Exception, match="exited 1"):
+        _run_page([block], tmp_path)
+
+
+def test_a_block_sees_the_checkout_and_shared(tmp_path: Path) -> None:
+    script = "test -d recordings && test -f experiments/small.toml && command -v pipemap\n"
+    if (ROOT.parent / "shared").is_dir():
+        script += "test -d ../shared\n"
+    _run_page([Block(ROOT / "README.md", 1, script, None)], tmp_path)
+
+
+def test_every_install_block_is_skipped() -> None:
+    """CI runs the installs (the Quick start, in fresh virtual environments); run here
+    they would reinstall the package under test."""
+    installs = [b.name for b in _BLOCKS if "pip install" in b.script and b.skip is None]
+    assert not installs, f"blocks that install but are not skipped: {installs}"
