@@ -249,18 +249,11 @@ def _cluster_cpus() -> int:
     return max(1, int(resources.get("CPU", 1)))
 
 
-@contextlib.contextmanager
-def _beside_installed_package() -> Iterator[None]:
-    """Hold the working folder at the folder ``pipemap`` was imported from while Ray
-    starts. Ray puts the driver's working folder first on every worker's module path:
-    run from a checkout, the checkout's own ``pipemap/`` folder (which lacks the layer
-    packages an install maps into it) would shadow the installed package."""
-    here = os.getcwd()
-    os.chdir(Path(__file__).resolve().parents[2])
-    try:
-        yield
-    finally:
-        os.chdir(here)
+def _beside_installed_package() -> contextlib.chdir[str]:
+    """Start Ray from the folder ``pipemap`` was imported from: Ray puts the driver's
+    working folder first on its workers' path, where a checkout's ``pipemap/`` folder
+    would shadow the installed package."""
+    return contextlib.chdir(str(Path(__file__).resolve().parents[2]))
 
 
 @contextlib.contextmanager
