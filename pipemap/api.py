@@ -51,6 +51,8 @@ from pipemap.replay import score as _score
 
 if TYPE_CHECKING:
     from pipemap.recorder import Progress, RecordResult, RecordSettings
+    from pipemap.recorder.ros2_contract import BagSpec
+    from pipemap.recorder.ros2_import import ImportResult
 
 #: ``pipemap -v`` prints each folder's decision (stderr).
 _LOG = logging.getLogger(__name__)
@@ -63,7 +65,10 @@ __all__ = [
     "LoggedSweep",
     "ReplayResult",
     "ScoreReport",
+    "BagSpec",
+    "ImportResult",
     "dumps_document",
+    "import_bag",
     "load_image_set",
     "load_image_sets",
     "map_image_sets",
@@ -191,6 +196,19 @@ def map_image_sets(
     return map_document(localizer.map, visits)
 
 
+def _new_file(path: str | Path, overwrite: bool) -> Path:
+    """``path`` as a file to write: not a folder, in a folder that exists, and not
+    there already unless ``overwrite``."""
+    target = Path(path)
+    if target.is_dir():
+        raise InputError(f"{target}: is a folder, not a file")
+    if target.exists() and not overwrite:
+        raise InputError(f"{target}: exists; refusing to overwrite")
+    if not target.parent.is_dir():
+        raise InputError(f"{target}: folder {target.parent} does not exist")
+    return target
+
+
 def record(
     path: str | Path,
     settings: RecordSettings,
@@ -206,12 +224,29 @@ def record(
     from pipemap.recorder import record_run
     from pipemap.sim.network import build_network
 
-    target = Path(path)
-    if target.is_dir():
-        raise InputError(f"{target}: is a folder, not a file")
-    if target.exists() and not overwrite:
-        raise InputError(f"{target}: exists; refusing to overwrite")
-    if not target.parent.is_dir():
-        raise InputError(f"{target}: folder {target.parent} does not exist")
+    target = _new_file(path, overwrite)
     network = build_network(settings.network, seed=settings.seed)
     return record_run(target, settings, network, __version__, progress, overwrite)
+
+
+def import_bag(
+    bag: str | Path,
+    output: str | Path,
+    spec: BagSpec | str | Path | None = None,
+    overwrite: bool = False,
+) -> ImportResult:
+    """Read the ROS 2 bag ``bag`` (a rosbag2 folder or storage file, MCAP or SQLite,
+    CDR) and write it as the pipemap log ``output``, which ``replay``, ``score`` and
+    ``view`` take. ``spec`` (a :class:`~pipemap.recorder.ros2_contract.BagSpec`, or
+    the path of a TOML file of its keys) says which topics are read; docs/ros2.md is
+    the contract. Everything is checked before the log is written; without
+    ``overwrite`` an existing file is never touched. Needs ``pipemap[ros]``."""
+    from pipemap.recorder.ros2_contract import BagSpec, load_spec
+    from pipemap.recorder.ros2_import import import_bag as _import_bag
+
+    target = _new_file(output, overwrite)
+    if not isinstance(spec, BagSpec):
+        spec = load_spec(spec)
+    from pipemap import __version__
+
+    return _import_bag(bag, target, spec, __version__)
