@@ -52,7 +52,9 @@ from pipemap.replay import score as _score
 if TYPE_CHECKING:
     from pipemap.recorder import Progress, RecordResult, RecordSettings
     from pipemap.recorder.ros2_contract import BagSpec
+    from pipemap.recorder.ros2_export import ExportResult
     from pipemap.recorder.ros2_import import ImportResult
+    from pipemap.recorder.trajectory import TumResult
 
 #: ``pipemap -v`` prints each folder's decision (stderr).
 _LOG = logging.getLogger(__name__)
@@ -68,6 +70,8 @@ __all__ = [
     "BagSpec",
     "ImportResult",
     "dumps_document",
+    "export_ros2",
+    "export_tum",
     "import_bag",
     "load_image_set",
     "load_image_sets",
@@ -250,3 +254,31 @@ def import_bag(
     from pipemap import __version__
 
     return _import_bag(bag, target, spec, __version__)
+
+
+def ros2_available() -> None:
+    """Raise an :class:`InputError` saying how to install rosbags where it is missing
+    (reading and writing bags needs it)."""
+    from pipemap.recorder.ros2_bag import typestore
+
+    typestore()
+
+
+def export_ros2(log: str | Path, output: str | Path, overwrite: bool = False) -> ExportResult:
+    """Write the pipemap log ``log`` as a ROS 2 bag: the rosbag2 folder ``output``
+    (metadata.yaml, MCAP storage, CDR) with the run's images, camera joint, IMU,
+    ranges, wheel odometry, ``/tf`` and sweep markers (docs/ros2.md). ``pipemap
+    import`` reads it back to a log that replays to the same map. Without
+    ``overwrite`` an existing folder is never touched. Needs ``pipemap[ros]``."""
+    from pipemap.recorder.ros2_export import export_ros2 as _export_ros2
+
+    return _export_ros2(log, output, overwrite)
+
+
+def export_tum(log: str | Path, folder: str | Path) -> TumResult:
+    """Write the log's dead-reckoned (``estimated.tum``) and true (``truth.tum``)
+    trajectories in the TUM format that evo reads, and each visit's junction
+    position (``junctions.csv``), into ``folder``."""
+    from pipemap.recorder.trajectory import export_tum as _export_tum
+
+    return _export_tum(log, folder)

@@ -40,6 +40,7 @@ from pipemap.recorder.ros2_contract import (
     MsgType,
 )
 from pipemap.recorder.ros2_sensors import (
+    Latest,
     controller_states,
     events,
     imu_messages,
@@ -188,14 +189,6 @@ def _joint_yaws(
     return found
 
 
-def _yaw_at(yaws: list[tuple[int, float]], t_ns: int) -> float:
-    """The latest yaw at or before ``t_ns`` (the first one for an earlier image)."""
-    import bisect
-
-    k = bisect.bisect_right([t for t, _ in yaws], t_ns) - 1
-    return yaws[max(k, 0)][1]
-
-
 def _marker(text: str, t_ns: int, topic: str) -> Any:
     """A sweep marker: pipemap's SweepCommand as JSON, or any other text for a START."""
     command = schemas.SweepCommand(phase=schemas.SweepCommand.START)
@@ -258,7 +251,9 @@ def import_bag(
     yaws = _joint_yaws(
         by_topic[spec.joint_states_topic], spec.camera_joint, spec.joint_states_topic
     )
-    images = _images(by_topic[spec.images_topic], spec, contents.types[spec.images_topic], yaws)
+    images = _images(
+        by_topic[spec.images_topic], spec, contents.types[spec.images_topic], Latest(yaws)
+    )
     sweeps = _sweeps(images, by_topic.get(spec.sweep_topic, []), spec, result)
     if contents.cut_short and len(sweeps) > 1 and len(sweeps[-1].images) != len(sweeps[-2].images):
         # The bag stops inside its last sweep: keep what is whole.
@@ -275,7 +270,7 @@ def import_bag(
 
 
 def _images(
-    messages: list[tuple[int, Any]], spec: BagSpec, kind: str, yaws: list[tuple[int, float]]
+    messages: list[tuple[int, Any]], spec: BagSpec, kind: str, yaws: Latest
 ) -> list[_Image]:
     out: list[_Image] = []
     first: tuple[int, int] | None = None
@@ -289,7 +284,7 @@ def _images(
                 f"{spec.images_topic}: image at {_seconds(t_ns)} is {size[0]}x{size[1]}, "
                 f"the first is {first[0]}x{first[1]}"
             )
-        out.append(_Image(t_ns, encode_png(rgb), _yaw_at(yaws, t_ns)))
+        out.append(_Image(t_ns, encode_png(rgb), yaws.at_or_first(t_ns)))
     return out
 
 

@@ -18,6 +18,7 @@ from pipemap.recorder import schemas
 from pipemap.recorder.messages import timestamp
 
 __all__ = [
+    "Latest",
     "controller_states",
     "events",
     "imu_messages",
@@ -34,20 +35,33 @@ def yaw_of(q: Any) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
-def _latest(readings: Stamped, t_ns: int) -> Any | None:
-    """The reading at or before ``t_ns`` (``None`` before the first)."""
-    k = bisect.bisect_right([t for t, _ in readings], t_ns) - 1
-    return readings[k][1] if k >= 0 else None
+class Latest:
+    """Readings looked up by time: the one at or before a time (``None`` before the
+    first)."""
+
+    def __init__(self, readings: Stamped) -> None:
+        ordered = sorted(readings, key=lambda p: p[0])
+        self._times = [t for t, _ in ordered]
+        self._values = [v for _, v in ordered]
+
+    def at(self, t_ns: int) -> Any | None:
+        k = bisect.bisect_right(self._times, t_ns) - 1
+        return self._values[k] if k >= 0 else None
+
+    def at_or_first(self, t_ns: int) -> Any:
+        """The reading at or before ``t_ns``, or the first one for an earlier time."""
+        found = self.at(t_ns)
+        return self._values[0] if found is None else found
 
 
 def range_messages(front: Stamped, left: Stamped, right: Stamped) -> list[tuple[int, Any]]:
     """One ``Ranges`` per front reading, with the left and right readings at or before
     it (the front's maximum range where there is none yet)."""
-    left, right = sorted(left, key=lambda p: p[0]), sorted(right, key=lambda p: p[0])
+    lefts, rights = Latest(left), Latest(right)
     out = []
     for t_ns, reading in sorted(front, key=lambda p: p[0]):
         most = float(reading.max_range)
-        side = [_latest(left, t_ns), _latest(right, t_ns)]
+        side = [lefts.at(t_ns), rights.at(t_ns)]
         out.append(
             (
                 t_ns,

@@ -50,6 +50,7 @@ COMMANDS: dict[str, str] = {
     "batch-report": "pipemap.cli.batch_command:run_batch_report",
     "view": "pipemap.cli.view_command:run_view",
     "import": "pipemap.cli.ros2_commands:run_import",
+    "export": "pipemap.cli.ros2_commands:run_export",
 }
 
 

@@ -9,7 +9,7 @@ import argparse
 import sys
 from typing import TextIO
 
-__all__ = ["run_import"]
+__all__ = ["run_export", "run_import"]
 
 
 def run_import(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -29,4 +29,48 @@ def run_import(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         f"{args.bag}: {result.sweeps} sweeps ({images} images) in {result.visits} visits "
         f"-> {target}\n"
     )
+    return 0
+
+
+def run_export(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
+    """Check every output and the log, then write each export asked for."""
+    from pathlib import Path
+
+    from pipemap import api
+    from pipemap.cli.outputs import output_folder
+    from pipemap.errors import InputError
+    from pipemap.recorder.trajectory import ESTIMATED, JUNCTIONS, TRUTH
+
+    if args.ros2 is None and args.tum is None:
+        raise InputError("export: say what to write: --ros2 OUT and/or --tum DIR")
+    ros2 = None if args.ros2 is None else output_folder(args.ros2, "--ros2", args.force)
+    if ros2 is not None:
+        api.ros2_available()
+    tum = None
+    if args.tum is not None:
+        mine = (ESTIMATED, TRUTH, JUNCTIONS)
+        tum = output_folder(
+            args.tum,
+            "--tum",
+            args.force,
+            lambda f: sorted(p.name for p in f.iterdir() if p.name in mine),
+        )
+    log = api.open_log(args.log)  # a missing or foreign file is refused before any writing
+    if ros2 is not None:
+        result = api.export_ros2(log.path, ros2, overwrite=True)
+        total = sum(result.counts.values())
+        out.write(f"{ros2}: {total} messages on {len(result.counts)} topics\n")
+        if result.undecodable:
+            err.write(
+                f"pipemap: warning: {result.undecodable} message(s) do not decode; left out\n"
+            )
+    if tum is not None:
+        written = api.export_tum(Path(args.log), tum)
+        counts = written.counts
+        out.write(
+            f"{tum}: {counts[ESTIMATED]} dead-reckoned poses, {counts[TRUTH]} true poses, "
+            f"{counts[JUNCTIONS]} junctions\n"
+        )
+        if not counts[TRUTH]:
+            err.write(f"pipemap: note: {args.log}: no ground truth (/truth/pose): no {TRUTH}\n")
     return 0

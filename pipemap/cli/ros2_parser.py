@@ -10,7 +10,7 @@ from pipemap.cli import arguments
 if TYPE_CHECKING:
     from pipemap.cli.arguments import Subparsers
 
-__all__ = ["add_import"]
+__all__ = ["add_export", "add_import"]
 
 
 def add_import(sub: Subparsers) -> None:
@@ -34,3 +34,26 @@ def add_import(sub: Subparsers) -> None:
         help="topics, joint, field of view and sweep gap (docs/ros2.md); default: ROS 2's usual",
     )
     arguments.add_force(p, "overwrite an existing log")
+
+
+def add_export(sub: Subparsers) -> None:
+    """``pipemap export RUN.mcap --ros2 OUT --tum DIR``: a log for ROS 2 tools and evo."""
+    p = sub.add_parser(
+        "export",
+        help="write a log as a ROS 2 bag (--ros2) or its trajectories for evo (--tum)",
+        description="Write a pipemap log for other tools: a rosbag2 bag (MCAP storage, CDR) "
+        "that ros2 bag, rosbags, Foxglove and RViz read and pipemap import reads back "
+        "(--ros2, needs pipemap[ros]); the dead-reckoned and true trajectories in the TUM "
+        "format evo reads, with each visit's junction position (--tum). docs/ros2.md.",
+    )
+    p.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
+    arguments.add_output(
+        p, "--ros2", metavar="OUT", helptext="write a rosbag2 bag folder here (a new folder)"
+    )
+    arguments.add_output(
+        p,
+        "--tum",
+        metavar="DIR",
+        helptext="write estimated.tum, truth.tum and junctions.csv to this new or empty folder",
+    )
+    arguments.add_force(p, "replace an earlier export")
