@@ -15,7 +15,7 @@ import math
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from google.protobuf import json_format
@@ -42,7 +42,7 @@ _NS = 1_000_000_000
 #: Foxglove Log levels to rcl_interfaces/msg/Log levels.
 _LEVELS = {1: 10, 2: 20, 3: 30, 4: 40, 5: 50}
 #: rosbag2 metadata version 8 (ROS 2 Iron and later read it).
-BAG_VERSION = 8
+BAG_VERSION: Literal[8] = 8
 
 
 @dataclass

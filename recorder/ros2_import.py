@@ -127,10 +127,10 @@ def _rgb(topic: str, t_ns: int, message: Any, kind: str) -> np.ndarray:
             )
         channels = 1 if message.encoding == "mono8" else 3
         h, w, step = int(message.height), int(message.width), int(message.step)
-        data = np.asarray(message.data, dtype=np.uint8)
-        if h * w == 0 or step < w * channels or data.size < h * step:
-            raise InputError(f"{where}: {data.size} bytes for {w}x{h} {message.encoding}")
-        pixels = data[: h * step].reshape(h, step)[:, : w * channels].reshape(h, w, channels)
+        raw = np.asarray(message.data, dtype=np.uint8)
+        if h * w == 0 or step < w * channels or raw.size < h * step:
+            raise InputError(f"{where}: {raw.size} bytes for {w}x{h} {message.encoding}")
+        pixels = raw[: h * step].reshape(h, step)[:, : w * channels].reshape(h, w, channels)
         if message.encoding == "mono8":
             return np.ascontiguousarray(np.repeat(pixels, 3, axis=2))
         if message.encoding == "bgr8":

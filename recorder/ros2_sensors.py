@@ -169,7 +169,7 @@ def events(messages: Stamped) -> list[tuple[int, Any]]:
                 t_ns,
                 schemas.Log(
                     timestamp=timestamp(t_ns),
-                    level=_LEVELS.get(int(m.level), 0),  # type: ignore[arg-type]
+                    level=_LEVELS.get(int(m.level), 0),
                     message=m.msg,
                     name=m.name,
                 ),
