@@ -79,6 +79,7 @@ __all__ = [
     "open_log",
     "record",
     "replay",
+    "save_results_log",
     "score",
 ]
 
@@ -282,3 +283,17 @@ def export_tum(log: str | Path, folder: str | Path) -> TumResult:
     from pipemap.recorder.trajectory import export_tum as _export_tum
 
     return _export_tum(log, folder)
+
+
+def save_results_log(
+    result: ReplayResult, output: str | Path, threshold: float | None = None
+) -> dict[str, int]:
+    """Write a replay's results as an MCAP log that Foxglove shows: the estimated pose
+    per visit (``foxglove.PoseInFrame`` on ``/replay/pose``, and ``/tf``), the map as
+    it grows (``foxglove.SceneUpdate``) and the decisions (``pipemap.Decision``);
+    see :mod:`pipemap.replay.results_log`. Returns the messages per topic."""
+    from pipemap.replay.results_log import write_results_log
+
+    return write_results_log(
+        result, output, LocalizerConfig().threshold if threshold is None else threshold
+    )

@@ -45,6 +45,7 @@ __all__ = [
     "decode_png",
     "encode_png",
     "image_message",
+    "labelled_sphere",
     "blocked_message",
     "blocked_visit",
     "log_message",
@@ -208,6 +209,34 @@ def blocked_visit(log: schemas.Log) -> tuple[int, float] | None:
         return None
 
 
+def labelled_sphere(
+    t_ns: int,
+    frame: str,
+    entity_id: str,
+    xy_m: tuple[float, float],
+    size_m: float,
+    color: Color,
+    text: str,
+) -> SceneEntity:
+    """A Foxglove scene entity: a sphere on the floor at ``xy_m`` with a white label."""
+    at = FoxglovePose(position=Vector3(x=xy_m[0], y=xy_m[1]), orientation=Quaternion(w=1.0))
+    entity = SceneEntity(timestamp=timestamp(t_ns), frame_id=frame, id=entity_id)
+    entity.spheres.append(
+        SpherePrimitive(pose=at, size=Vector3(x=size_m, y=size_m, z=size_m), color=color)
+    )
+    entity.texts.append(
+        TextPrimitive(
+            pose=at,
+            billboard=True,
+            font_size=14.0,
+            scale_invariant=True,
+            color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
+            text=text,
+        )
+    )
+    return entity
+
+
 def network_message(
     network: Network, t_ns: int = 0, obstacles: tuple[Obstacle, ...] = ()
 ) -> schemas.SceneUpdate:
@@ -234,25 +263,15 @@ def network_message(
         )
         update.entities.append(entity)
     for node in network.nodes:
-        at = FoxglovePose(position=Vector3(x=node.x_m, y=node.y_m), orientation=Quaternion(w=1.0))
-        entity = SceneEntity(
-            timestamp=timestamp(t_ns), frame_id=WORLD_FRAME, id=f"node/{node.label}"
-        )
         size = network.diameter_m * 1.2
-        entity.spheres.append(
-            SpherePrimitive(
-                pose=at, size=Vector3(x=size, y=size, z=size), color=Color(r=0.9, g=0.5, a=0.8)
-            )
-        )
-        entity.texts.append(
-            TextPrimitive(
-                pose=at,
-                billboard=True,
-                font_size=14.0,
-                scale_invariant=True,
-                color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
-                text=node.label,
-            )
+        entity = labelled_sphere(
+            t_ns,
+            WORLD_FRAME,
+            f"node/{node.label}",
+            (node.x_m, node.y_m),
+            size,
+            Color(r=0.9, g=0.5, a=0.8),
+            node.label,
         )
         entity.metadata.add(key="kind", value=network.kind(node.label).value)
         update.entities.append(entity)
