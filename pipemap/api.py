@@ -70,6 +70,7 @@ __all__ = [
     "BagSpec",
     "ImportResult",
     "dumps_document",
+    "export_geojson",
     "export_ros2",
     "export_tum",
     "import_bag",
@@ -297,3 +298,18 @@ def save_results_log(
     return write_results_log(
         result, output, LocalizerConfig().threshold if threshold is None else threshold
     )
+
+
+def export_geojson(
+    log: Log | MessageSource | str | Path,
+    output: str | Path,
+    config: LocalizerConfig | None = None,
+) -> int:
+    """Replay ``log`` and write its map as GeoJSON for GIS tools: junctions as points
+    placed by the robot's dead reckoning, pipes as lines with their ports and driven
+    lengths, in a local metric frame the file names (:mod:`pipemap.replay.geojson`).
+    Returns the features written."""
+    from pipemap.replay.geojson import write_geojson
+
+    name = Path(log).stem if isinstance(log, str | Path) else "pipemap"
+    return write_geojson(replay(log, config), output, name)

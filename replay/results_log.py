@@ -34,7 +34,7 @@ from pipemap.recorder.messages import decision_message, labelled_sphere, timesta
 from pipemap.recorder.schemas import FrameTransform
 from pipemap.replay.replayer import ReplayResult
 
-__all__ = ["RESULT_TOPICS", "write_results_log"]
+__all__ = ["RESULT_TOPICS", "junction_places", "write_results_log"]
 
 POSE, TF, MAP, DECISION = "/replay/pose", "/tf", "/replay/map", "/replay/decision"
 RESULT_TOPICS = (POSE, TF, MAP, DECISION)
@@ -70,9 +70,20 @@ def _map_update(
     return update
 
 
+def junction_places(result: ReplayResult) -> dict[int, tuple[float, float]]:
+    """Each junction's place: the robot's dead reckoning at the exit scan of the
+    junction's first visit that has one (junctions without one are left out)."""
+    places: dict[int, tuple[float, float]] = {}
+    for visit in result.visits:
+        if visit.exits is not None and visit.exits.exits_rad is not None:
+            places.setdefault(visit.decision.node, (visit.exits.x_m, visit.exits.y_m))
+    return places
+
+
 def write_results_log(result: ReplayResult, output: str | Path, threshold: float) -> dict[str, int]:
     """Write ``result`` to the MCAP file ``output``; returns the messages per topic."""
     counts = dict.fromkeys(RESULT_TOPICS, 0)
+    every_place = junction_places(result)
     places: dict[int, tuple[float, float]] = {}
     pipes: set[tuple[int, int]] = set()
     breaks = set(result.breaks)
@@ -82,8 +93,8 @@ def write_results_log(result: ReplayResult, output: str | Path, threshold: float
             writer = Writer(stream)
             for k, visit in enumerate(result.visits):
                 t, node = visit.time_ns, visit.decision.node
-                if visit.exits is not None and visit.exits.exits_rad is not None:
-                    places.setdefault(node, (visit.exits.x_m, visit.exits.y_m))
+                if node in every_place:
+                    places.setdefault(node, every_place[node])
                 if previous is not None and k not in breaks and previous != node:
                     pipes.add((min(previous, node), max(previous, node)))
                 previous = node

@@ -37,12 +37,13 @@ def run_export(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from pathlib import Path
 
     from pipemap import api
-    from pipemap.cli.outputs import output_folder
+    from pipemap.cli.outputs import output_file, output_folder
     from pipemap.errors import InputError
     from pipemap.recorder.trajectory import ESTIMATED, JUNCTIONS, TRUTH
 
-    if args.ros2 is None and args.tum is None:
-        raise InputError("export: say what to write: --ros2 OUT and/or --tum DIR")
+    if args.ros2 is None and args.tum is None and args.geojson is None:
+        raise InputError("export: say what to write: --ros2 OUT, --tum DIR or --geojson OUT")
+    geojson = output_file(args.geojson, "--geojson", args.force)
     ros2 = None if args.ros2 is None else output_folder(args.ros2, "--ros2", args.force)
     if ros2 is not None:
         api.ros2_available()
@@ -73,4 +74,7 @@ def run_export(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         )
         if not counts[TRUTH]:
             err.write(f"pipemap: note: {args.log}: no ground truth (/truth/pose): no {TRUTH}\n")
+    if geojson is not None:
+        features = api.export_geojson(Path(args.log), geojson)
+        out.write(f"{geojson}: {features} features (junctions and pipes)\n")
     return 0

@@ -40,11 +40,13 @@ def add_export(sub: Subparsers) -> None:
     """``pipemap export RUN.mcap --ros2 OUT --tum DIR``: a log for ROS 2 tools and evo."""
     p = sub.add_parser(
         "export",
-        help="write a log as a ROS 2 bag (--ros2) or its trajectories for evo (--tum)",
+        help="write a log as a ROS 2 bag (--ros2), trajectories for evo (--tum), a GIS map "
+        "(--geojson)",
         description="Write a pipemap log for other tools: a rosbag2 bag (MCAP storage, CDR) "
         "that ros2 bag, rosbags, Foxglove and RViz read and pipemap import reads back "
         "(--ros2, needs pipemap[ros]); the dead-reckoned and true trajectories in the TUM "
-        "format evo reads, with each visit's junction position (--tum). docs/ros2.md.",
+        "format evo reads, with each visit's junction position (--tum); the replayed map "
+        "as GeoJSON (--geojson). docs/ros2.md.",
     )
     p.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
     arguments.add_output(
@@ -55,5 +57,12 @@ def add_export(sub: Subparsers) -> None:
         "--tum",
         metavar="DIR",
         helptext="write estimated.tum, truth.tum and junctions.csv to this new or empty folder",
+    )
+    arguments.add_output(
+        p,
+        "--geojson",
+        metavar="OUT.geojson",
+        helptext="replay the log and write its map as GeoJSON for GIS tools: junctions placed "
+        "by the robot's dead reckoning, pipes as lines, in a local metric frame",
     )
     arguments.add_force(p, "replace an earlier export")

@@ -117,7 +117,7 @@ def test_export_checks_its_outputs_and_the_log_first(
 ) -> None:
     log = str(RECORDINGS / "paper_active.mcap")
     status, _, err = _run(["export", log], capsys)
-    assert status == 2 and "--ros2 OUT and/or --tum DIR" in err
+    assert status == 2 and "--ros2 OUT, --tum DIR or --geojson OUT" in err
     status, _, err = _run(
         ["export", str(tmp_path / "none.mcap"), "--ros2", str(tmp_path / "b")], capsys
     )
