@@ -131,7 +131,7 @@ def write_results_log(result: ReplayResult, output: str | Path, threshold: float
                 for topic, message in writes:
                     writer.write_message(topic, message, log_time=t, publish_time=t)
                     counts[topic] += 1
-            writer.finish()
+            writer.finish()  # type: ignore[no-untyped-call]
     except OSError as exc:
         raise WriteError(f"{output}: cannot write ({exc.strerror or exc})") from None
     return counts
