@@ -31,6 +31,7 @@ from typing import Any, BinaryIO, cast
 from pipemap.errors import InputError, WriteError
 from pipemap.recorder.convert import LogRecord, RecordConverter
 from pipemap.recorder.inline import FinishesOnExit
+from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.writer import LogWriter
 
 __all__ = ["BackgroundWriter", "writer_main"]
@@ -110,7 +111,7 @@ def _write(
     output: BinaryIO, records: BinaryIO, replies: BinaryIO, run_metadata: dict[str, str]
 ) -> int:
     writer = LogWriter(output, run_metadata)
-    convert = RecordConverter(writer)
+    convert = RecordConverter(writer, encoding=ImageEncoding.of_run(run_metadata))
     _reply(replies, ("ready", None))
     result: dict[str, str] | None = {"status": "lost its run: the recording process ended"}
     frames: queue.SimpleQueue[bytes | None] = queue.SimpleQueue()

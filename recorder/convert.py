@@ -78,9 +78,15 @@ LogRecord = SimRecord | SweepDone | ReadyMessage
 class RecordConverter:
     """Writes each record's messages to a :class:`MessageSink` (a log writer)."""
 
-    def __init__(self, writer: MessageSink, spec: RobotSpec | None = None) -> None:
+    def __init__(
+        self,
+        writer: MessageSink,
+        spec: RobotSpec | None = None,
+        encoding: messages.ImageEncoding | None = None,
+    ) -> None:
         self.writer = writer
         self.spec = spec if spec is not None else RobotSpec()
+        self.encoding = encoding or messages.ImageEncoding()
 
     def __call__(self, record: LogRecord) -> None:
         w, t = self.writer, record.t_ns
@@ -140,7 +146,7 @@ class RecordConverter:
         elif isinstance(record, SweepStart):
             self._sweep_start(record)
         elif isinstance(record, SweepImage):
-            w.write(Topic.IMAGE, t, messages.image_message(t, record.image))
+            w.write(Topic.IMAGE, t, messages.image_message(t, record.image, self.encoding))
             w.write(
                 Topic.SWEEP,
                 t,

@@ -23,6 +23,7 @@ from typing import BinaryIO, Protocol, Self, cast
 
 from pipemap.errors import InputError, WriteError
 from pipemap.recorder.convert import LogRecord, RecordConverter
+from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.writer import LogWriter
 
 __all__ = ["FinishesOnExit", "InlineWriter", "RecordWriter"]
@@ -97,7 +98,7 @@ class InlineWriter(FinishesOnExit):
             self._writer = LogWriter(self._output, dict(run_metadata))
         except OSError as exc:
             raise self._failed(exc) from None
-        self._convert = RecordConverter(self._writer)
+        self._convert = RecordConverter(self._writer, encoding=ImageEncoding.of_run(run_metadata))
         self._finished = False
         self.messages = 0
 

@@ -2,13 +2,17 @@
 
 One function per message type; each takes plain values and returns a protobuf
 message, so the conversions are tested without a simulator. Images are stored as
-lossless PNG: a replay must see exactly what the robot saw.
+lossless PNG by default, so that a replay sees exactly what the robot saw; a run
+recorded with ``--image-format jpeg`` stores JPEG, as a real robot's camera often
+gives it (docs/recorder.md measures what that does to the decisions).
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import cv2
@@ -36,9 +40,12 @@ if TYPE_CHECKING:
 __all__ = [
     "WORLD_FRAME",
     "decision_message",
+    "ImageEncoding",
+    "decode_image",
     "decode_png",
     "encode_png",
     "image_message",
+    "labelled_sphere",
     "blocked_message",
     "blocked_visit",
     "log_message",
@@ -84,10 +91,73 @@ def decode_png(data: bytes) -> np.ndarray | None:
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
-def image_message(t_ns: int, rgb: np.ndarray) -> schemas.CompressedImage:
-    """A camera image as Foxglove's ``CompressedImage`` (PNG)."""
+@dataclass(frozen=True)
+class ImageEncoding:
+    """How the camera's images are stored: ``png`` (lossless) or ``jpeg`` at
+    ``jpeg_quality`` (1..100, OpenCV's scale)."""
+
+    image_format: str = "png"
+    jpeg_quality: int = 90
+
+    def __post_init__(self) -> None:
+        if self.image_format not in IMAGE_FORMATS:
+            raise ValueError(f"image format {self.image_format!r}, not one of {IMAGE_FORMATS}")
+        if not 1 <= self.jpeg_quality <= 100:
+            raise ValueError(f"JPEG quality {self.jpeg_quality}, not in 1..100")
+
+    @classmethod
+    def of_run(cls, run: Mapping[str, str]) -> ImageEncoding:
+        """The encoding a run's ``pipemap.run`` metadata names (PNG where it names none)."""
+        if run.get("image_format", "png") != "jpeg":
+            return cls()
+        return cls("jpeg", int(run.get("jpeg_quality", "90")))
+
+    def metadata(self) -> dict[str, str]:
+        """The keys of ``pipemap.run`` that say so (none for PNG: such a log stays as
+        it always was)."""
+        if self.image_format == "png":
+            return {}
+        return {"image_format": self.image_format, "jpeg_quality": str(self.jpeg_quality)}
+
+    def encode(self, rgb: np.ndarray) -> bytes:
+        """The image's bytes in this encoding."""
+        if self.image_format == "png":
+            return encode_png(rgb)
+        bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+        ok, data = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
+        if not ok:  # pragma: no cover - OpenCV encodes any uint8 image
+            raise ValueError("JPEG encoding failed")
+        return bytes(data.tobytes())
+
+
+#: The image formats a log may hold.
+IMAGE_FORMATS = ("png", "jpeg")
+
+
+def decode_image(data: bytes, image_format: str) -> np.ndarray | None:
+    """The RGB image of PNG or JPEG bytes, or ``None`` when they are not a whole,
+    readable image of that format (a JPEG without its end marker is cut short:
+    libjpeg would decode it with only a warning)."""
+    if image_format == "png":
+        return decode_png(data)
+    if image_format != "jpeg" or not data.rstrip(b"\0").endswith(b"\xff\xd9"):
+        return None
+    bgr = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
+    if bgr is None:
+        return None
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def image_message(
+    t_ns: int, rgb: np.ndarray, encoding: ImageEncoding | None = None
+) -> schemas.CompressedImage:
+    """A camera image as Foxglove's ``CompressedImage`` (PNG by default)."""
+    encoding = encoding or ImageEncoding()
     return schemas.CompressedImage(
-        timestamp=timestamp(t_ns), frame_id=CAMERA_FRAME, data=encode_png(rgb), format="png"
+        timestamp=timestamp(t_ns),
+        frame_id=CAMERA_FRAME,
+        data=encoding.encode(rgb),
+        format=encoding.image_format,
     )
 
 
@@ -139,6 +209,34 @@ def blocked_visit(log: schemas.Log) -> tuple[int, float] | None:
         return None
 
 
+def labelled_sphere(
+    t_ns: int,
+    frame: str,
+    entity_id: str,
+    xy_m: tuple[float, float],
+    size_m: float,
+    color: Color,
+    text: str,
+) -> SceneEntity:
+    """A Foxglove scene entity: a sphere on the floor at ``xy_m`` with a white label."""
+    at = FoxglovePose(position=Vector3(x=xy_m[0], y=xy_m[1]), orientation=Quaternion(w=1.0))
+    entity = SceneEntity(timestamp=timestamp(t_ns), frame_id=frame, id=entity_id)
+    entity.spheres.append(
+        SpherePrimitive(pose=at, size=Vector3(x=size_m, y=size_m, z=size_m), color=color)
+    )
+    entity.texts.append(
+        TextPrimitive(
+            pose=at,
+            billboard=True,
+            font_size=14.0,
+            scale_invariant=True,
+            color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
+            text=text,
+        )
+    )
+    return entity
+
+
 def network_message(
     network: Network, t_ns: int = 0, obstacles: tuple[Obstacle, ...] = ()
 ) -> schemas.SceneUpdate:
@@ -165,25 +263,15 @@ def network_message(
         )
         update.entities.append(entity)
     for node in network.nodes:
-        at = FoxglovePose(position=Vector3(x=node.x_m, y=node.y_m), orientation=Quaternion(w=1.0))
-        entity = SceneEntity(
-            timestamp=timestamp(t_ns), frame_id=WORLD_FRAME, id=f"node/{node.label}"
-        )
         size = network.diameter_m * 1.2
-        entity.spheres.append(
-            SpherePrimitive(
-                pose=at, size=Vector3(x=size, y=size, z=size), color=Color(r=0.9, g=0.5, a=0.8)
-            )
-        )
-        entity.texts.append(
-            TextPrimitive(
-                pose=at,
-                billboard=True,
-                font_size=14.0,
-                scale_invariant=True,
-                color=Color(r=1.0, g=1.0, b=1.0, a=1.0),
-                text=node.label,
-            )
+        entity = labelled_sphere(
+            t_ns,
+            WORLD_FRAME,
+            f"node/{node.label}",
+            (node.x_m, node.y_m),
+            size,
+            Color(r=0.9, g=0.5, a=0.8),
+            node.label,
         )
         entity.metadata.add(key="kind", value=network.kind(node.label).value)
         update.entities.append(entity)

@@ -14,6 +14,7 @@ from typing import Any
 
 from pipemap.errors import InputError, SimError
 from pipemap.localizer import DEFAULT_THRESHOLD
+from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.online import Explore
 from pipemap.recorder.topics import FORMAT_VERSION
 from pipemap.sim.controller import ExplorerConfig
@@ -52,8 +53,16 @@ class RecordSettings:
     #: Motor cut-outs while driving, drawn from the seed (autonomous condition): see
     #: :mod:`sim.motor_faults`. 0: none, and the log is as without the setting.
     motor_faults: int = 0
+    #: How the log stores the camera's images: ``png`` (lossless) or ``jpeg``.
+    image_format: str = "png"
+    #: The JPEG quality (1..100) with ``image_format="jpeg"``.
+    jpeg_quality: int = 90
 
     def __post_init__(self) -> None:
+        try:
+            self.image_encoding()
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
         what = (
             ("--obstacles", self.obstacles, "a deposit"),
             ("--motor-faults", self.motor_faults, "a motor cut-out"),
@@ -77,6 +86,10 @@ class RecordSettings:
     def cut_outs(self, network: Network) -> tuple[MotorFault, ...]:
         """The run's motor cut-outs (none by default)."""
         return draw_motor_faults(network, self.motor_faults, self.seed)
+
+    def image_encoding(self) -> ImageEncoding:
+        """How the log stores the camera's images."""
+        return ImageEncoding(self.image_format, self.jpeg_quality)
 
     def camera(self) -> CameraSpec:
         """The camera of the run."""
@@ -121,6 +134,8 @@ class RecordSettings:
             if self.condition is Condition.AUTONOMOUS
             else Explore.RIGHT_HAND.value,
             "simulator": json.dumps(simulator, sort_keys=True, default=_json_value),
+            # Only for JPEG: a PNG run's metadata stays as it always was.
+            **self.image_encoding().metadata(),
         }
 
     def explorer_config(self) -> ExplorerConfig:

@@ -29,6 +29,7 @@ from pipemap.errors import ViewerError
 from pipemap.localizer import Localizer, LocalizerConfig
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.convert import LogRecord, RecordConverter
+from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.metadata import lamp_strength
 from pipemap.recorder.topics import ROBOT_PREFIX
 from pipemap.replay.replayer import (
@@ -92,7 +93,10 @@ class LiveView:
         self.rec = rec
         self._geometry = RobotGeometry.from_run(run_metadata)
         self._collector = _Collector()
-        self._convert = RecordConverter(self._collector)
+        # The images as the log stores them (a JPEG run replays JPEG-decoded pixels).
+        self._convert = RecordConverter(
+            self._collector, encoding=ImageEncoding.of_run(run_metadata)
+        )
         self._carried = Carried()
         self._map = MapLog(rec)
         # As a replay of the log would: a lamp-lit camera's sweeps are normalised.

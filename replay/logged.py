@@ -20,7 +20,7 @@ from google.protobuf.message import DecodeError
 from pipemap.errors import PipemapError
 from pipemap.localizer import IlluminationConfig, ImageSet, normalised
 from pipemap.recorder import LogMessage, Topic
-from pipemap.recorder.messages import blocked_visit, decode_png
+from pipemap.recorder.messages import IMAGE_FORMATS, blocked_visit, decode_image
 from pipemap.recorder.schemas import CompressedImage, Log, NodeEvent, SweepCommand
 from pipemap.replay.source import ordered
 
@@ -173,14 +173,14 @@ class SweepAssembler:
     """Puts the sweeps of ordered ``/robot`` messages together one message at a time
     (:meth:`feed`), so a replay can decide a visit as soon as its sweeps are complete
     instead of holding the whole log. A sweep with an image that is missing, does
-    not decode or is not a readable PNG is skipped, and so is one cut off by the
+    not decode or is not a readable PNG or JPEG is skipped, and so is one cut off by the
     end of the log (:meth:`finish`); each gets a line in :attr:`warnings`."""
 
     def __init__(self, name: str = "log") -> None:
         self.name = name
         #: One line per sweep that was skipped, or message that could not be read.
         self.warnings: list[str] = []
-        self._images_at: dict[int, bytes] = {}
+        self._images_at: dict[int, tuple[str, bytes]] = {}
         # Log time of an image message -> why it is unusable.
         self._unreadable: dict[int, str] = {}
         self._current: _Sweep | None = None
@@ -200,10 +200,12 @@ class SweepAssembler:
             except DecodeError:
                 self._unreadable[m.log_time_ns] = "does not decode as foxglove.CompressedImage"
                 return None
-            if image.format != "png":
-                self._unreadable[m.log_time_ns] = f"is in format {image.format!r}, not png"
+            if image.format not in IMAGE_FORMATS:
+                self._unreadable[m.log_time_ns] = (
+                    f"is in format {image.format!r}, not {' or '.join(IMAGE_FORMATS)}"
+                )
             else:
-                self._images_at[m.log_time_ns] = image.data
+                self._images_at[m.log_time_ns] = (image.format, image.data)
             return None
         if m.topic != Topic.SWEEP:
             return None
@@ -231,14 +233,14 @@ class SweepAssembler:
     def _add_image(self, sweep: _Sweep, command: Any, log_time_ns: int) -> None:
         n = sweep.start.image_count
         which = f"image {command.image_index + 1} of {n} ({_seconds(log_time_ns)})"
-        png = self._images_at.pop(log_time_ns, None)
-        if png is None:
+        image = self._images_at.pop(log_time_ns, None)
+        if image is None:
             why = self._unreadable.pop(log_time_ns, "is missing")
             sweep.broken = f"{which} {why}"
             return
-        rgb = decode_png(png)
+        rgb = decode_image(image[1], image[0])
         if rgb is None:
-            sweep.broken = f"{which} is not a readable PNG"
+            sweep.broken = f"{which} is not a readable {image[0].upper()}"
             return
         sweep.frames.append(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY))
 

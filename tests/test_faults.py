@@ -132,6 +132,13 @@ BAD_IMAGES = {
         "image 2 of 6",
         "is not a readable PNG",
     ),
+    "cut-jpeg": (
+        schemas.CompressedImage(
+            format="jpeg", data=b"\xff\xd8\xff\xe0 cut short"
+        ).SerializeToString(),
+        "image 2 of 6",
+        "is not a readable JPEG",
+    ),
 }
 
 

@@ -49,6 +49,8 @@ COMMANDS: dict[str, str] = {
     "batch": "pipemap.cli.batch_command:run_batch_command",
     "batch-report": "pipemap.cli.batch_command:run_batch_report",
     "view": "pipemap.cli.view_command:run_view",
+    "import": "pipemap.cli.ros2_commands:run_import",
+    "export": "pipemap.cli.ros2_commands:run_export",
 }
 
 

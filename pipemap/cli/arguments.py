@@ -77,6 +77,7 @@ _zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (
 tilt_deg = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 15.0, "not in [0, 15]")
 obstacles = _checked(int, lambda v: v >= 0, "an obstacle count must be >= 0")
 motor_faults = _checked(int, lambda v: v >= 0, "a cut-out count must be >= 0")
+jpeg_quality = _checked(int, lambda v: 1 <= v <= 100, "JPEG quality must be 1..100")
 highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
 
 

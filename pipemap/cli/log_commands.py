@@ -97,6 +97,8 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
         )
+    if args.jpeg_quality is not None and args.image_format != "jpeg":
+        raise InputError("--jpeg-quality: sets the JPEG encoding, so it needs --image-format jpeg")
     if args.save and not args.view:
         raise InputError("--save: writes the view of the run, so it needs --view")
     if args.connect is not None and not args.view:
@@ -122,6 +124,8 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         tilt_rad=math.radians(args.tilt_deg),
         obstacles=args.obstacles,
         motor_faults=args.motor_faults,
+        image_format=args.image_format,
+        jpeg_quality=90 if args.jpeg_quality is None else args.jpeg_quality,
     )
     settings.deposits(network)  # too many for the network: an error before any work
     live = None

@@ -48,6 +48,13 @@ def add_replay(sub: Subparsers) -> None:
     arguments.add_output(
         p, "--graphml", metavar="MAP.graphml", helptext="also write the map as GraphML"
     )
+    arguments.add_output(
+        p,
+        "--save-log",
+        metavar="OUT.mcap",
+        helptext="also write the results as an MCAP log for Foxglove: the estimated pose per "
+        "visit (foxglove.PoseInFrame, /tf), the map (foxglove.SceneUpdate), the decisions",
+    )
     arguments.add_force(p, "overwrite existing files")
 
 

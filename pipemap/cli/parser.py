@@ -14,6 +14,7 @@ from pipemap.cli.arguments import OneLineParser
 from pipemap.cli.batch_parser import add_batch, add_batch_report, add_experiment
 from pipemap.cli.folder_parser import add_map, add_match, add_route
 from pipemap.cli.log_parser import add_info, add_replay, add_score, add_view
+from pipemap.cli.ros2_parser import add_export, add_import
 from pipemap.cli.sim_parser import add_record, add_sim
 
 __all__ = ["build_parser"]
@@ -32,6 +33,8 @@ _COMMANDS = (
     add_batch,
     add_batch_report,
     add_info,
+    add_import,
+    add_export,
 )
 
 

@@ -100,6 +100,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 
     target = output_file(args.output, "-o", args.force)
     graphml = output_file(args.graphml, "--graphml", args.force)
+    results_log = output_file(args.save_log, "--save-log", args.force)
     config = localizer_config(args)
     # Read as the replay goes: it holds the map, not the log.
     source = StreamSource(Path(args.log), REPLAY_TOPICS)
@@ -116,6 +117,10 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
             f"replayed {args.log}: {len(result.visits)} visits, {result.topomap.node_count} "
             f"junctions, map written to {target}\n"
         )
+    if results_log is not None:
+        from pipemap import api
+
+        api.save_results_log(result, results_log, config.threshold)
     if graphml is not None:
         import networkx as nx  # 0.09 s to import: only for GraphML
 

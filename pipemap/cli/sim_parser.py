@@ -122,6 +122,20 @@ def add_record(sub: Subparsers) -> None:
     )
     arguments.add_force(p, "overwrite an existing log")
     p.add_argument(
+        "--image-format",
+        choices=("png", "jpeg"),
+        default="png",
+        help="how the log stores the camera's images: png, lossless (default), or jpeg, as "
+        "a real camera often gives them (the replay decodes what the log holds)",
+    )
+    p.add_argument(
+        "--jpeg-quality",
+        type=arguments.jpeg_quality,
+        default=None,
+        metavar="Q",
+        help="with --image-format jpeg: the JPEG quality, 1..100 (default 90)",
+    )
+    p.add_argument(
         "--view",
         action="store_true",
         help="stream the run live to a rerun viewer (spawned, or the one of --connect)",
