@@ -102,6 +102,8 @@ SYNOPSIS_PAGES = {
     "batch": "batch.md",
     "batch-report": "batch.md",
     "experiment": "batch.md",
+    "import": "ros2.md",
+    "export": "ros2.md",
 }
 
 
