@@ -100,10 +100,13 @@ class FastMatcher:
                 f"fraction) does not match the database's {self._sets[0].shape_key[:5]}"
             )
 
-    def add(self, prepared: PreparedSet) -> int:
+    def add(self, prepared: PreparedSet, keep_spectra: bool = False) -> int:
         """Append a prepared set to the database; returns its index.
 
         The screening arrays grow by doubling, so adding M sets copies O(M) data.
+        With ``keep_spectra``, a set given with its searched refinement spectra keeps
+        them (a caller that holds them anyway, as :func:`pairwise_matches` does);
+        otherwise they are rebuilt from the compact images when refined.
         """
         self._check(prepared)
         n = prepared.count
@@ -121,7 +124,7 @@ class FastMatcher:
             self._inv_window_norm = _grown(self._inv_window_norm, axis=1)
         self._image_rows[:, :, used : used + n] = prepared.image_rows
         self._inv_window_norm[:, used : used + n, :] = prepared.inv_window_norm
-        self._sets.append(_kept(prepared))
+        self._sets.append(_kept(prepared, keep_spectra))
         return len(self._sets) - 1
 
     def kept_bytes(self) -> int:
@@ -245,15 +248,18 @@ class FastMatcher:
                 : n_offsets if rank == 0 else n_runner_up
             ]
         ]
+        # Each candidate's spectra fetched once: with more candidates than the cache
+        # holds, fetching them again for each block rebuilt them every time.
+        refinable = {i: self._refinable(i) for i, _ in blocks}
         if blocks:
-            values, columns = _zoomed_peaks(query, [(self._refinable(i), k) for i, k in blocks])
+            values, columns = _zoomed_peaks(query, [(refinable[i], k) for i, k in blocks])
         j = np.arange(n)
         for i in order[: self.config.refine_candidates]:
             peak_ncc = np.full((n, n), -np.inf)
             peak_dx = np.zeros((n, n))
             for b, (owner, k) in enumerate(blocks):
                 if owner == i:
-                    fine = self._refinable(i).fine
+                    fine = refinable[i].fine
                     assert fine is not None
                     peak_ncc[j, (j + k) % n] = values[b]
                     peak_dx[j, (j + k) % n] = columns[b] * (fine.full_width_px / fine.width)
@@ -268,11 +274,13 @@ class FastMatcher:
 _FINE_CACHE = 8
 
 
-def _kept(prepared: PreparedSet) -> PreparedSet:
+def _kept(prepared: PreparedSet, keep_spectra: bool = False) -> PreparedSet:
     """What a database keeps of a set: no query-side screening rows (the matcher's
-    arrays hold its searched rows), no spectra when the compact images can rebuild them."""
+    arrays hold its searched rows), no spectra when the compact images can rebuild them
+    (unless ``keep_spectra`` and they are the searched ones)."""
     empty = np.zeros((0,), dtype=np.complex64)
-    rebuildable = prepared.fine_images is not None
+    searched = prepared.fine is not None and prepared.fine.inv_window_norm is not None
+    rebuildable = prepared.fine_images is not None and not (keep_spectra and searched)
     return replace(
         prepared,
         template_rows=empty,
@@ -357,6 +365,20 @@ def _as_query(prepared: PreparedSet) -> PreparedSet:
     return replace(prepared, fine=fine)
 
 
+def _searched(prepared: PreparedSet) -> PreparedSet:
+    """``prepared`` with the refinement spectra a known set is searched by.
+
+    :func:`pairwise_matches` builds them once per set and keeps them while the set has
+    pairs to come (at 800 px, 1.6 MiB a set): rebuilt for every pair instead, as a
+    matcher's cache of a few would, they took a quarter of ``pipemap match``'s time.
+    """
+    if prepared.fine is not None and prepared.fine.inv_window_norm is not None:
+        return prepared
+    assert prepared.fine_images is not None
+    fine = _fine_spectra(prepared.fine_images.images(), prepared.width_px)
+    return replace(prepared, fine=fine)
+
+
 def _prepared_for(item: ImageSet | PreparedSet, config: FastConfig) -> PreparedSet:
     if isinstance(item, ImageSet):
         return for_pairs(prepare(item, config))
@@ -397,6 +419,7 @@ def pairwise_matches(
         later_of.setdefault(i, []).append(j)
         last_use[i] = last_use[j] = i
     prepared: dict[int, PreparedSet] = {}
+    searched: dict[int, PreparedSet] = {}  # with the spectra a known set is refined by
     offsets = sets[0].count if every_offset else base.refine_offsets
     for i, later in later_of.items():
         everything = replace(
@@ -407,9 +430,14 @@ def pairwise_matches(
             if k not in prepared:
                 prepared[k] = _prepared_for(sets[k], base)
         for j in later:
-            matcher.add(prepared[j])
-        for j, match in zip(later, matcher.match(_as_query(prepared[i])), strict=True):
+            if j not in searched:
+                searched[j] = _searched(prepared[j])
+            matcher.add(searched[j], keep_spectra=True)
+        # A set searched before has the very spectrum a query's would be.
+        query = searched[i] if i in searched else _as_query(prepared[i])
+        for j, match in zip(later, matcher.match(query), strict=True):
             out[(i, j)] = match
         for k in [k for k in prepared if last_use[k] == i]:
             del prepared[k]
+            searched.pop(k, None)
     return out

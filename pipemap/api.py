@@ -19,6 +19,7 @@ function needs them.
 
 from __future__ import annotations
 
+import importlib
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -28,33 +29,50 @@ from typing import TYPE_CHECKING, Any
 from pipemap.errors import InputError
 from pipemap.imagesets import load_image_set, load_image_sets, read_robot_notes
 from pipemap.localizer import (
+    FastConfig,
     ImageSet,
     Localizer,
     LocalizerConfig,
+    PreparedSet,
+    SetMatch,
     dumps_document,
+    for_pairs,
     map_document,
+    pairwise_matches,
+    prepare,
+    reference_match,
 )
-from pipemap.recorder import Integrity
-from pipemap.replay import (
-    REPLAY_TOPICS,
-    SCORE_TOPICS,
-    FileSource,
-    LoggedSweep,
-    MessageSource,
-    ReplayResult,
-    ScoreReport,
-    StreamSource,
-    sweeps_of,
-)
-from pipemap.replay import replay as _replay
-from pipemap.replay import score as _score
 
 if TYPE_CHECKING:
-    from pipemap.recorder import Progress, RecordResult, RecordSettings
+    from pipemap.recorder import Integrity, Progress, RecordResult, RecordSettings
     from pipemap.recorder.ros2_contract import BagSpec
     from pipemap.recorder.ros2_export import ExportResult
     from pipemap.recorder.ros2_import import ImportResult
     from pipemap.recorder.trajectory import TumResult
+    from pipemap.replay import (
+        FileSource,
+        LoggedSweep,
+        MessageSource,
+        ReplayResult,
+        ScoreReport,
+    )
+
+#: Names of this module that come from the log layers, loaded on first use: the
+#: image-set commands never read a log, and loading mcap, protobuf and the replay
+#: cost ``pipemap match`` 0.18 s of CPU (docs/performance.md).
+_LOG_LAYER_NAMES = {
+    "Integrity": "pipemap.recorder",
+    "LoggedSweep": "pipemap.replay",
+    "ReplayResult": "pipemap.replay",
+    "ScoreReport": "pipemap.replay",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LOG_LAYER_NAMES:
+        return getattr(importlib.import_module(_LOG_LAYER_NAMES[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: ``pipemap -v`` prints each folder's decision (stderr).
 _LOG = logging.getLogger(__name__)
@@ -77,6 +95,7 @@ __all__ = [
     "load_image_set",
     "load_image_sets",
     "map_image_sets",
+    "match_image_sets",
     "open_log",
     "record",
     "replay",
@@ -115,6 +134,8 @@ class Log:
         """Every complete camera sweep of the log, in the robot's order: visits first
         taken at each junction and the probe sweeps of active vision (``probe`` set).
         Each holds the grey :class:`ImageSet` the localizer sees."""
+        from pipemap.replay import sweeps_of
+
         return sweeps_of(self.source.robot_messages(), self.source.name).sweeps
 
     def visits(self) -> list[LoggedSweep]:
@@ -129,6 +150,8 @@ def open_log(path: str | Path) -> Log:
     is intact replays. Raises :class:`pipemap.errors.LogFormatError` for a file
     that is missing or is not a pipemap log.
     """
+    from pipemap.replay import FileSource
+
     path = Path(path)
     return Log(path, FileSource(path))
 
@@ -138,6 +161,8 @@ def _source(log: Log | MessageSource | str | Path, topics: tuple[str, ...]) -> M
     if isinstance(log, Log):
         return log.source
     if isinstance(log, str | Path):
+        from pipemap.replay import StreamSource
+
         return StreamSource(log, topics)
     return log
 
@@ -161,6 +186,9 @@ def replay(
     ``result.visit_sets``. The visits as the matcher prepared them (83 KiB each, for
     pair statistics) are kept either way.
     """
+    from pipemap.replay import REPLAY_TOPICS
+    from pipemap.replay import replay as _replay
+
     return _replay(_source(log, REPLAY_TOPICS), config, progress, keep_sets=keep_images)
 
 
@@ -168,7 +196,52 @@ def score(
     log: Log | MessageSource | str | Path, config: LocalizerConfig | None = None
 ) -> ScoreReport:
     """Replay ``log`` and score its map against the log's ground truth (``/truth``)."""
+    from pipemap.replay import SCORE_TOPICS
+    from pipemap.replay import score as _score
+
     return _score(_source(log, SCORE_TOPICS), config)
+
+
+def match_image_sets(
+    folders: Sequence[str | Path],
+    config: FastConfig | None = None,
+    fov_rad: float | None = None,
+    keep_top_fraction: float | None = None,
+    every_offset: bool = False,
+    reference: bool = False,
+) -> dict[tuple[int, int], SetMatch]:
+    """The paper's similarity (Algorithm 2) of every pair ``(i, j)``, ``i < j``, of
+    image-set folders: what ``pipemap match`` prints.
+
+    The fast path (:func:`pipemap.localizer.pairwise_matches` with ``config``) keeps
+    of each folder only what the matcher needs (:func:`pipemap.localizer.for_pairs`),
+    made as it is read: 25 sets of 800 px images are 384 MB as images, about 1 MB
+    each so prepared. ``reference`` compares the images themselves with the paper's
+    recipe at full resolution (:func:`pipemap.localizer.reference_match`; seconds a
+    pair). Every folder is read and checked before any pair is compared.
+    """
+    if reference:
+        sets = load_image_sets([str(f) for f in folders], fov_rad, keep_top_fraction)
+        return {
+            (i, j): reference_match(sets[i], sets[j])
+            for i in range(len(sets))
+            for j in range(i + 1, len(sets))
+        }
+    fast = config if config is not None else FastConfig()
+    prepared: list[PreparedSet] = []
+    first: tuple[str, ImageSet] | None = None
+    for folder in folders:
+        image_set = load_image_set(folder, fov_rad, keep_top_fraction)
+        if first is None:
+            first = (str(folder), image_set)
+        elif image_set.images.shape != first[1].images.shape:
+            raise InputError(
+                f"{folder}: {image_set.count} images of {image_set.width}x"
+                f"{image_set.height}, but {first[0]} has {first[1].count} of "
+                f"{first[1].width}x{first[1].height}"
+            )
+        prepared.append(for_pairs(prepare(image_set, fast)))
+    return pairwise_matches(prepared, fast, every_offset=every_offset)
 
 
 def map_image_sets(

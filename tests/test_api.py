@@ -5,11 +5,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 
 from pipemap import api
 from pipemap.errors import InputError, LogFormatError
-from pipemap.localizer import PAPER
+from pipemap.localizer import PAPER, pairwise_matches, reference_match
 from pipemap.recorder import RecordSettings
 
 RECORDINGS = Path(__file__).resolve().parents[1] / "recordings"
@@ -77,6 +79,25 @@ def test_map_image_sets(paper_sets: dict[str, object]) -> None:
     doc = api.map_image_sets([shared / "1", shared / "4", shared / "2"])
     assert [v["known"] for v in doc["visits"]] == [False, False, True]
     assert doc["visits"][2]["node"] == doc["visits"][0]["node"]
+
+
+def test_match_image_sets_is_every_pair_of_the_loaded_sets(
+    paper_sets: dict[str, object], tmp_path: Path
+) -> None:
+    shared = Path(__file__).resolve().parents[2] / "shared" / "paper_imagesets"
+    folders = [shared / "1", shared / "4", shared / "2_noise"]
+    loaded = api.load_image_sets(folders)
+    # Prepared as each folder is read, the very numbers of the sets loaded whole.
+    assert api.match_image_sets(folders) == pairwise_matches(loaded)
+    reference = api.match_image_sets(folders[:2], reference=True)
+    assert reference == {(0, 1): reference_match(loaded[0], loaded[1])}
+    # A set of another size is found while reading, before any pair.
+    small = tmp_path / "small"
+    small.mkdir()
+    for j in range(1, 7):
+        cv2.imwrite(str(small / f"camera_image{j}.png"), np.zeros((40, 40), np.uint8))
+    with pytest.raises(InputError, match="6 images of 40x40, but"):
+        api.match_image_sets([*folders, small])
 
 
 def test_record_then_score(tmp_path: Path) -> None:

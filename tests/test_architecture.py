@@ -304,8 +304,8 @@ def test_the_walker_sees_real_imports() -> None:
     """Guards against a checker that passes because it collects nothing."""
     path = "pipemap/cli/folder_commands.py"
     targets = {imp.target for imp in imports_of(ast.parse((ROOT / path).read_text()), path)}
-    assert "pipemap.localizer.ImageSet" in targets
-    assert "pipemap.imagesets.load_image_sets" in targets
+    assert "pipemap.localizer.LocalizerConfig" in targets
+    assert "pipemap.api" in targets
 
 
 @pytest.mark.parametrize("relpath", source_files())

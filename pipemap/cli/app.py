@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import TextIO
@@ -22,7 +23,7 @@ from pipemap.cli.localizer_options import apply_presets
 from pipemap.cli.parser import build_parser
 from pipemap.errors import PipemapError, WriteError
 
-__all__ = ["BAD_INPUT", "INTERRUPTED", "WRITE_FAILED", "main"]
+__all__ = ["BAD_INPUT", "INTERRUPTED", "WRITE_FAILED", "main", "one_blas_thread"]
 
 #: Exit statuses besides 0 (done) and 1 (done, but the run or the log is incomplete:
 #: ``sim`` and ``record`` stopped short of covering the network, ``info`` found damage).
@@ -68,8 +69,36 @@ def _run(argv: Sequence[str] | None) -> int:
     return runner(args, sys.stdout, sys.stderr)
 
 
+#: Environment variables that size the BLAS thread pool (OpenBLAS reads the first it
+#: finds of the first three; MKL its own, then OpenMP's).
+BLAS_THREAD_SETTINGS = (
+    "OPENBLAS_NUM_THREADS",
+    "GOTO_NUM_THREADS",
+    "OMP_NUM_THREADS",
+    "MKL_NUM_THREADS",
+)
+
+
+def one_blas_thread() -> bool:
+    """Run numpy's matrix products on one thread, unless the user sized the pool.
+
+    pipemap's products are small (a set's area reduction: a 25 x 400 weight matrix
+    times six 400 x 800 images at 800 px), and OpenBLAS's threads spin while they
+    wait for the next one: on a busy machine ``pipemap match`` on the paper's 11
+    sets took 4.5 s of CPU with a thread a core, 2.7 with one, the same numbers to
+    the last bit (docs/performance.md). Effective only before numpy loads, which no
+    command does before :func:`main` calls this. Returns whether it set anything.
+    """
+    if any(name in os.environ for name in BLAS_THREAD_SETTINGS):
+        return False
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    os.environ["MKL_NUM_THREADS"] = "1"
+    return True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pipemap`` console script; returns the exit status."""
+    one_blas_thread()
     try:
         return _run(argv)
     except WriteError as exc:

@@ -18,21 +18,9 @@ from pipemap.cli.localizer_options import (
     port_check,
     two_view_settings,
 )
-from pipemap.imagesets import load_image_sets
-from pipemap.localizer import (
-    ImageSet,
-    LocalizerConfig,
-    SetMatch,
-    dumps_document,
-    pairwise_matches,
-    reference_match,
-)
+from pipemap.localizer import LocalizerConfig, SetMatch, dumps_document
 
 __all__ = ["match_document", "run_map", "run_match"]
-
-
-def _load(args: argparse.Namespace) -> list[ImageSet]:
-    return load_image_sets(args.dirs, args.fov_deg, args.keep_top)
 
 
 def match_document(
@@ -59,15 +47,14 @@ def match_document(
 
 def run_match(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Load the folders, match every pair, print a table or JSON."""
-    sets = _load(args)
-    if args.reference:
-        matches = {
-            (i, j): reference_match(sets[i], sets[j])
-            for i in range(len(sets))
-            for j in range(i + 1, len(sets))
-        }
-    else:
-        matches = pairwise_matches(sets, fast_config(args), every_offset=args.every_offset)
+    matches = api.match_image_sets(
+        args.dirs,
+        fast_config(args),
+        args.fov_deg,
+        args.keep_top,
+        every_offset=args.every_offset,
+        reference=args.reference,
+    )
     doc = match_document(list(args.dirs), matches, args.threshold)
     if args.json:
         out.write(json.dumps(doc, indent=2) + "\n")

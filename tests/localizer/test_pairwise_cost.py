@@ -1,0 +1,77 @@
+"""What every pair of ``pipemap match`` costs: each set's refinement spectra built once,
+the refinement's temporaries bounded, and the very same numbers whatever the grouping."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from pipemap.localizer import FastConfig, FastMatcher, fastmatch, pairwise_matches, spectra
+from pipemap.localizer.fastmatch import for_pairs, prepare
+from tests.localizer.synthetic import panorama, sweep
+
+
+def _sets(count: int) -> list[Any]:
+    return [sweep(panorama(seed)) for seed in range(count)]
+
+
+def _counting(monkeypatch: pytest.MonkeyPatch, module: Any, name: str) -> list[int]:
+    calls: list[int] = []
+    real = getattr(module, name)
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(module, name, counted)
+    return calls
+
+
+def test_each_sets_searched_spectra_are_built_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    sets = [for_pairs(prepare(s, FastConfig())) for s in _sets(6)]
+    built = _counting(monkeypatch, fastmatch, "_fine_spectra")
+    matches = pairwise_matches(sets)
+    assert len(matches) == 15
+    # Sets 1..5 once as searched sets (set 1..4 then serve as queries too), set 0 once
+    # as a query: rebuilt for every pair, it was 15 and more.
+    assert len(built) == 6
+
+
+def test_a_match_fetches_each_candidates_spectra_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    # More candidates than the matcher's cache holds: fetching them again per block
+    # rebuilt every one a second time.
+    count = fastmatch._FINE_CACHE + 3
+    config = FastConfig(refine_candidates=count, runner_up_offsets=6)
+    matcher = FastMatcher(config)
+    sets = _sets(count + 1)
+    for s in sets[1:]:
+        matcher.add(matcher.prepare(s))
+    query = matcher.prepare(sets[0])
+    built = _counting(monkeypatch, fastmatch, "_fine_spectra")
+    matcher.match(query)
+    assert len(built) == count
+
+
+def test_refinement_runs_in_bounded_groups_with_the_same_numbers(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    sets = _sets(5)
+    whole = pairwise_matches(sets, every_offset=True)
+    groups: list[int] = []
+    real = spectra._chunk_rows
+
+    def spy(query: Any, ramped: np.ndarray, blocks: list[Any]) -> np.ndarray:
+        groups.append(len(blocks))
+        return real(query, ramped, blocks)
+
+    monkeypatch.setattr(spectra, "_chunk_rows", spy)
+    monkeypatch.setattr(spectra, "PEAK_CHUNK_BYTES", 1)  # one block at a time
+    one_by_one = pairwise_matches(sets, every_offset=True)
+    assert groups and max(groups) == 1
+    assert one_by_one == whole  # every field, to the last bit
+    groups.clear()
+    monkeypatch.setattr(spectra, "PEAK_CHUNK_BYTES", 1 << 40)
+    assert pairwise_matches(sets, every_offset=True) == whole
+    assert max(groups) > 1
