@@ -49,6 +49,7 @@ def add_replay(sub: Subparsers) -> None:
         p, "--graphml", metavar="MAP.graphml", helptext="also write the map as GraphML"
     )
     arguments.add_force(p, "overwrite existing files")
+    arguments.add_verbose(p)
 
 
 def add_score(sub: Subparsers) -> None:
@@ -67,6 +68,7 @@ def add_score(sub: Subparsers) -> None:
         helptext="write score.json and visits.csv to this new or empty folder",
     )
     arguments.add_force(p, "replace the files of an earlier score")
+    arguments.add_verbose(p)
 
 
 def add_view(sub: Subparsers) -> None:

@@ -69,8 +69,8 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
     p.add_argument(
         "--explore",
         choices=["map", "right-hand"],
-        default="map",
-        help="autonomous condition: how the robot chooses exits; map (default): every "
+        default=None,
+        help="autonomous condition only: how the robot chooses exits; map (default): every "
         "untraversed pipe of its own map, Trémaux-style, then back to the start; "
         "right-hand: the paper's right-most-branch rule",
     )
@@ -88,8 +88,10 @@ def add_sim(sub: Subparsers) -> None:
     p = sub.add_parser(
         "sim",
         help="run a simulated exploration and save its sweeps",
-        description="Explore a pipe network by the right-most-branch rule and save every "
-        "junction sweep as DIR/0001, DIR/0002, ... in the paper's folder layout.",
+        description="Explore a pipe network and save every junction sweep as DIR/0001, "
+        "DIR/0002, ... in the paper's folder layout: placed at each junction along the "
+        "paper's tour (default, --condition perfect), or driving on its own "
+        "(--condition autonomous, exploring by --explore).",
     )
     _add_run_options(p, "perfect")
     arguments.add_output(
@@ -119,6 +121,7 @@ def add_record(sub: Subparsers) -> None:
         p, "-o", "--output", required=True, metavar="RUN.mcap", helptext="log file"
     )
     arguments.add_force(p, "overwrite an existing log")
+    arguments.add_verbose(p)
     p.add_argument(
         "--view",
         action="store_true",
