@@ -50,17 +50,45 @@ from pipemap.replay import replay as _replay
 from pipemap.replay import score as _score
 
 if TYPE_CHECKING:
-    from pipemap.recorder import Progress, RecordResult, RecordSettings
+    from pipemap.recorder import Explore, Progress, RecordResult, RecordSettings
+    from pipemap.sim.episode import Condition
+
+#: What :func:`record` takes and returns, loaded on first use (PEP 562): they pull in
+#: the simulator (``pipemap[sim]``), which reading, replaying and scoring do without.
+_RECORDING = {
+    "Condition": "pipemap.sim.episode",
+    "Explore": "pipemap.recorder.online",
+    "Progress": "pipemap.recorder.session",
+    "RecordResult": "pipemap.recorder.session",
+    "RecordSettings": "pipemap.recorder.settings",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _RECORDING:
+        raise AttributeError(f"module 'pipemap.api' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(_RECORDING[name]), name)
+    globals()[name] = value
+    return value
+
 
 #: ``pipemap -v`` prints each folder's decision (stderr).
 _LOG = logging.getLogger(__name__)
 
 __all__ = [
+    "Condition",
+    "Explore",
     "ImageSet",
     "Integrity",
     "Log",
     "LocalizerConfig",
     "LoggedSweep",
+    "MessageSource",
+    "Progress",
+    "RecordResult",
+    "RecordSettings",
     "ReplayResult",
     "ScoreReport",
     "dumps_document",

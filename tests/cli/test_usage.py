@@ -129,3 +129,32 @@ def test_sim_announces_a_slow_world_build(tmp_path: Path, monkeypatch: pytest.Mo
     assert code == 0, lines
     assert lines[0].startswith("pipemap: building the world of paper (7 junctions, 6 pipes)")
     assert lines[1].startswith("pipemap: world built in ")
+
+
+ACTIVE = ROOT / "recordings" / "paper_active.mcap"
+
+
+def test_score_takes_several_logs(tmp_path: Path) -> None:
+    import json
+
+    both = run_subprocess(["score", str(LOG), str(ACTIVE), "--json"], tmp_path)
+    assert both.returncode == 0, both.stderr
+    reports = json.loads(both.stdout)
+    assert isinstance(reports, list) and len(reports) == 2
+    for report, log in zip(reports, (LOG, ACTIVE), strict=True):
+        stored = json.loads(log.with_suffix("").with_suffix(".score.json").read_text())
+        assert report["decisions"] == stored["decisions"]
+        assert report["map_correct"] is stored["map_correct"] is True
+    text = run_subprocess(["score", str(LOG), str(ACTIVE)], tmp_path)
+    assert text.returncode == 0, text.stderr
+    logs = [line for line in text.stdout.splitlines() if line.startswith("log ")]
+    assert [line.split()[1] for line in logs] == [str(LOG), str(ACTIVE)]
+
+
+def test_score_checks_every_log_before_the_first_replay(tmp_path: Path) -> None:
+    missing = tmp_path / "none.mcap"
+    code, lines = cli("score", str(LOG), str(missing))
+    assert code == 2 and lines == [f"pipemap: error: {missing}: no such file"], lines
+    code, lines = cli("score", str(LOG), str(ACTIVE), "--save-results", str(tmp_path / "s"))
+    assert code == 2 and len(lines) == 1 and "one log" in lines[0], lines
+    assert not (tmp_path / "s").exists()
