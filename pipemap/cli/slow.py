@@ -1,6 +1,8 @@
 """A line on stderr for a step that takes long with nothing else to show: building
 the world of a large network (a 100-junction world takes about a minute). A step done
-within :data:`SLOW_S` seconds says nothing."""
+within :data:`SLOW_S` seconds says nothing. As the other progress lines, it is shown
+on a terminal only: a command whose stderr goes to a file or a pipe keeps it to its
+warnings and its one error line."""
 
 from __future__ import annotations
 
@@ -28,8 +30,10 @@ class SlowNotice:
         self._said = False
 
     def start(self) -> None:
-        """Start the step's clock."""
+        """Start the step's clock (on a terminal: elsewhere the notice stays silent)."""
         self.stop()
+        if not self._err.isatty():
+            return
         self._started = time.perf_counter()
         self._said = False
         self._timer = threading.Timer(SLOW_S, self._say)

@@ -105,27 +105,45 @@ def test_a_downsampling_beyond_the_logs_images_is_refused(tmp_path: Path) -> Non
     assert "at most" in done.stderr and done.stdout == ""
 
 
+class Terminal(io.StringIO):
+    """Standard error as a terminal: where progress lines are shown."""
+
+    def isatty(self) -> bool:
+        return True
+
+
 def test_a_slow_step_says_so_and_how_long_it_took(monkeypatch: pytest.MonkeyPatch) -> None:
-    err = io.StringIO()
+    err = Terminal()
     monkeypatch.setattr(slow, "SLOW_S", 0.05)
     with slow.SlowNotice(err, "building the world of x", "world built"):
         time.sleep(0.3)
     lines = err.getvalue().splitlines()
     assert lines[0] == "pipemap: building the world of x ..."
     assert lines[1].startswith("pipemap: world built in ") and lines[1].endswith(" s")
-    quick = io.StringIO()
+    quick = Terminal()
     with slow.SlowNotice(quick, "building", "built"):
         pass
     time.sleep(0.1)
     assert quick.getvalue() == ""
+    piped = io.StringIO()  # not a terminal: stderr keeps to warnings and errors
+    with slow.SlowNotice(piped, "building", "built"):
+        time.sleep(0.3)
+    assert piped.getvalue() == ""
 
 
 def test_sim_announces_a_slow_world_build(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Every world counts as slow here: the notice comes before the run and its end."""
+    import contextlib
+
+    from pipemap.cli import main
+
     monkeypatch.setattr(slow, "SLOW_S", 0.0)
     out = tmp_path / "sweeps"
     argv = ["sim", "--network", "paper", "--resolution", "32", "--images", "2"]
-    code, lines = cli(*argv, "--save-sweeps", str(out))
+    err = Terminal()
+    with contextlib.redirect_stderr(err):
+        code = main([*argv, "--save-sweeps", str(out)])
+    lines = err.getvalue().splitlines()
     assert code == 0, lines
     assert lines[0].startswith("pipemap: building the world of paper (7 junctions, 6 pipes)")
     assert lines[1].startswith("pipemap: world built in ")
