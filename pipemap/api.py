@@ -50,7 +50,7 @@ from pipemap.replay import replay as _replay
 from pipemap.replay import score as _score
 
 if TYPE_CHECKING:
-    from pipemap.recorder import Explore, Progress, RecordResult, RecordSettings
+    from pipemap.recorder import Explore, Progress, RecordResult, RecordSettings, RunObserver
     from pipemap.sim.episode import Condition
 
 #: What :func:`record` takes and returns, loaded on first use (PEP 562): they pull in
@@ -61,6 +61,7 @@ _RECORDING = {
     "Progress": "pipemap.recorder.session",
     "RecordResult": "pipemap.recorder.session",
     "RecordSettings": "pipemap.recorder.settings",
+    "RunObserver": "pipemap.recorder.session",
 }
 
 
@@ -90,6 +91,7 @@ __all__ = [
     "RecordResult",
     "RecordSettings",
     "ReplayResult",
+    "RunObserver",
     "ScoreReport",
     "dumps_document",
     "load_image_set",
@@ -224,11 +226,16 @@ def record(
     settings: RecordSettings,
     overwrite: bool = False,
     progress: Callable[[Progress], None] | None = None,
+    observer: RunObserver | None = None,
+    inline: bool = False,
 ) -> RecordResult:
     """Simulate ``settings`` (network, seed, condition, ...) with the localizer online
     and write the whole run to the MCAP log ``path``.
 
-    Without ``overwrite`` an existing file is never touched. Loads the simulator.
+    Without ``overwrite`` an existing file is never touched. ``observer`` sees every
+    record as the log gets it (``pipemap record --view`` streams them to rerun);
+    ``inline`` writes the log in this process instead of a writer process (a batch's
+    workers do): the same bytes either way. Loads the simulator (``pipemap[sim]``).
     """
     from pipemap import __version__
     from pipemap.recorder import record_run
@@ -242,4 +249,4 @@ def record(
     if not target.parent.is_dir():
         raise InputError(f"{target}: folder {target.parent} does not exist")
     network = build_network(settings.network, seed=settings.seed)
-    return record_run(target, settings, network, __version__, progress, overwrite)
+    return record_run(target, settings, network, __version__, progress, overwrite, observer, inline)

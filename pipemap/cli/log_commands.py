@@ -93,8 +93,9 @@ def _conditions_note(simulator: Any) -> str:
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, run the episode while writing its log, print a summary."""
+    from pipemap import api
     from pipemap.cli.outputs import output_file
-    from pipemap.recorder import RecordSettings, record_run
+    from pipemap.recorder import RecordSettings
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
 
@@ -142,7 +143,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     progress = _progress_printer(err, notice)
     restore = _interrupt_once()
     try:
-        result = record_run(target, settings, network, __version__, progress, args.force, live)
+        result = api.record(target, settings, args.force, progress, live)
     except KeyboardInterrupt:
         if err.isatty():
             err.write("\n")
