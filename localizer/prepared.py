@@ -282,6 +282,11 @@ def config_key(config: FastConfig) -> tuple[float, ...]:
 
 def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     """Precompute everything the fast path needs of one image set."""
+    if config.fine_downsample > image_set.width // 2:
+        raise LocalizerError(
+            f"downsampling by {config.fine_downsample} (--downsample) leaves less than two "
+            f"pixels of a {image_set.width} px wide image: at most {image_set.width // 2}"
+        )
     if config.highpass_fraction > 0.0:
         image_set = _high_passed(image_set, config.highpass_fraction * image_set.width)
     cropped = image_set.cropped()

@@ -9,6 +9,7 @@ shares. Importing this package loads none of them.
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+#: The one place the version is written (pyproject.toml reads it from here).
+__version__ = "0.2.0"
 
 __all__ = ["__version__"]

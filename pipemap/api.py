@@ -44,7 +44,14 @@ from pipemap.localizer import (
 )
 
 if TYPE_CHECKING:
-    from pipemap.recorder import Integrity, Progress, RecordResult, RecordSettings
+    from pipemap.recorder import (
+        Explore,
+        Integrity,
+        Progress,
+        RecordResult,
+        RecordSettings,
+        RunObserver,
+    )
     from pipemap.recorder.ros2_contract import BagSpec
     from pipemap.recorder.ros2_export import ExportResult
     from pipemap.recorder.ros2_import import ImportResult
@@ -56,34 +63,54 @@ if TYPE_CHECKING:
         ReplayResult,
         ScoreReport,
     )
+    from pipemap.sim.episode import Condition
 
-#: Names of this module that come from the log layers, loaded on first use: the
-#: image-set commands never read a log, and loading mcap, protobuf and the replay
-#: cost ``pipemap match`` 0.18 s of CPU (docs/performance.md).
-_LOG_LAYER_NAMES = {
+#: Names of this module loaded on first use (PEP 562): the image-set commands never
+#: read a log (loading mcap, protobuf and the replay cost ``pipemap match`` 0.18 s of
+#: CPU, docs/performance.md), and what :func:`record` takes and returns pulls in the
+#: simulator (``pipemap[sim]``), which reading, replaying and scoring do without.
+_LAZY = {
     "Integrity": "pipemap.recorder",
     "LoggedSweep": "pipemap.replay",
+    "MessageSource": "pipemap.replay",
     "ReplayResult": "pipemap.replay",
     "ScoreReport": "pipemap.replay",
+    "BagSpec": "pipemap.recorder.ros2_contract",
+    "ImportResult": "pipemap.recorder.ros2_import",
+    "Condition": "pipemap.sim.episode",
+    "Explore": "pipemap.recorder.online",
+    "Progress": "pipemap.recorder.session",
+    "RecordResult": "pipemap.recorder.session",
+    "RecordSettings": "pipemap.recorder.settings",
+    "RunObserver": "pipemap.recorder.session",
 }
 
 
 def __getattr__(name: str) -> Any:
-    if name in _LOG_LAYER_NAMES:
-        return getattr(importlib.import_module(_LOG_LAYER_NAMES[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    if name not in _LAZY:
+        raise AttributeError(f"module 'pipemap.api' has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value
+    return value
 
 
 #: ``pipemap -v`` prints each folder's decision (stderr).
 _LOG = logging.getLogger(__name__)
 
 __all__ = [
+    "Condition",
+    "Explore",
     "ImageSet",
     "Integrity",
     "Log",
     "LocalizerConfig",
     "LoggedSweep",
+    "MessageSource",
+    "Progress",
+    "RecordResult",
+    "RecordSettings",
     "ReplayResult",
+    "RunObserver",
     "ScoreReport",
     "BagSpec",
     "ImportResult",
@@ -293,11 +320,16 @@ def record(
     settings: RecordSettings,
     overwrite: bool = False,
     progress: Callable[[Progress], None] | None = None,
+    observer: RunObserver | None = None,
+    inline: bool = False,
 ) -> RecordResult:
     """Simulate ``settings`` (network, seed, condition, ...) with the localizer online
     and write the whole run to the MCAP log ``path``.
 
-    Without ``overwrite`` an existing file is never touched. Loads the simulator.
+    Without ``overwrite`` an existing file is never touched. ``observer`` sees every
+    record as the log gets it (``pipemap record --view`` streams them to rerun);
+    ``inline`` writes the log in this process instead of a writer process (a batch's
+    workers do): the same bytes either way. Loads the simulator (``pipemap[sim]``).
     """
     from pipemap import __version__
     from pipemap.recorder import record_run
@@ -305,7 +337,7 @@ def record(
 
     target = _new_file(path, overwrite)
     network = build_network(settings.network, seed=settings.seed)
-    return record_run(target, settings, network, __version__, progress, overwrite)
+    return record_run(target, settings, network, __version__, progress, overwrite, observer, inline)
 
 
 def import_bag(

@@ -79,11 +79,14 @@ _CRUISE_MPS = ExplorerConfig().speed_mps
 
 @dataclass(frozen=True)
 class Progress:
-    """How far a recording has come."""
+    """How far a recording has come. Reported before the world is built
+    (``world_ready`` false: a large network's takes a minute), once it is built, and
+    at the end of every sweep."""
 
     sim_time_ns: int
     sweeps: int
     visits: int
+    world_ready: bool = True
 
 
 #: Watches a run as it is recorded: called with the records sent to the log since the
@@ -351,7 +354,11 @@ def record_run(
         sink = _OnlineSink(writer, localizer, camera, progress, observer)
         truth = messages.network_message(network, obstacles=deposits)
         sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
+        if progress is not None:
+            progress(Progress(0, 0, 0, world_ready=False))
         with World(network, seed=settings.seed, obstacles=deposits) as world:
+            if progress is not None:
+                progress(Progress(0, 0, 0))
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
                 explorer = settings.explorer_config()

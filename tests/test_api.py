@@ -126,3 +126,28 @@ def test_bad_input_raises_pipemap_errors(tmp_path: Path) -> None:
     assert existing.read_bytes() == b"precious"
     with pytest.raises(InputError, match="does not exist"):
         api.record(tmp_path / "no" / "run.mcap", RecordSettings(network="paper"))
+
+
+#: Names in the API's signatures that are not pipemap's own types.
+_NOT_PIPEMAPS = {"Any", "Callable", "Path", "Sequence", "None"}
+
+
+def test_the_api_exports_every_type_its_functions_take_and_give() -> None:
+    import inspect
+    import re
+
+    named: set[str] = set()
+    for name in api.__all__:
+        value = getattr(api, name)
+        if not inspect.isfunction(value):
+            continue
+        signature = inspect.signature(value)
+        texts = [str(p.annotation) for p in signature.parameters.values()]
+        texts.append(str(signature.return_annotation))
+        for text in texts:
+            named |= set(re.findall(r"\b[A-Z][A-Za-z]+\b", text)) - _NOT_PIPEMAPS
+    assert {"RecordSettings", "RecordResult", "Progress", "MessageSource", "Log"} <= named
+    for name in named:
+        assert name in api.__all__, f"pipemap.api takes or gives {name} but does not export it"
+    assert api.RecordSettings is RecordSettings
+    assert api.RecordSettings(network="paper", explore=api.Explore.MAP).explore is api.Explore.MAP

@@ -73,6 +73,8 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
     # Batch experiments: below the command line only, above every layer.
     "pipemap.batch": (
         "pipemap.batch",
+        # Each run is recorded (and scored) as a script does it.
+        "pipemap.api",
         "pipemap.recorder",
         "pipemap.replay",
         "pipemap.sim",

@@ -109,6 +109,15 @@ def test_the_experiment_resumes_without_running_again(experiment: Path) -> None:
     assert after["conditions"] == json.loads(before)["conditions"]
 
 
+def test_the_experiment_resumes_only_at_its_own_settings(experiment: Path) -> None:
+    files = ("results.csv", "results.json", "spec.toml", "experiment.md")
+    before = {name: (experiment / name).read_bytes() for name in files}
+    done = pipemap("experiment", "paper", "--out", str(experiment), "--resume")
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "resolution (32 there; 400 here)" in done.stderr
+    assert {name: (experiment / name).read_bytes() for name in files} == before
+
+
 @pytest.mark.parametrize(
     "args,message",
     [

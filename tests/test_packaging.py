@@ -10,6 +10,7 @@ machine. The suite itself runs on an editable install, which checks that those w
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import zipfile
@@ -83,12 +84,9 @@ def test_installed_layers_import_under_pipemap_only(wheel: Path, tmp_path: Path)
         assert gone.returncode != 0, f"'import {old}' works: a layer leaked out of pipemap"
 
 
-@pytest.fixture(scope="module")
-def plain_install(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A virtual environment holding the wheel as ``pip install .`` leaves it (no
-    editable finder), with this environment's dependencies reachable through a path
-    file; its ``bin`` folder."""
-    venv = tmp_path_factory.mktemp("plain") / "venv"
+def _venv_with(wheel: Path, venv: Path, deps: list[str]) -> Path:
+    """A new virtual environment at ``venv`` holding the wheel (no dependencies
+    installed) and a path file naming the folders ``deps``; its ``bin`` folder."""
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
     python = venv / "bin" / "python"
     subprocess.run(
@@ -103,11 +101,19 @@ def plain_install(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path
         capture_output=True,
         text=True,
     ).stdout.strip()
+    (Path(site) / "pipemap_test_deps.pth").write_text("\n".join(deps) + "\n")
+    return venv / "bin"
+
+
+@pytest.fixture(scope="module")
+def plain_install(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A virtual environment holding the wheel as ``pip install .`` leaves it (no
+    editable finder), with this environment's dependencies reachable through a path
+    file; its ``bin`` folder."""
     # Plain directory entries only: this environment's own path files (among them the
     # editable install's finder) are not run there.
     deps = [p for p in sys.path if p.endswith("site-packages")]
-    (Path(site) / "pipemap_test_deps.pth").write_text("\n".join(deps) + "\n")
-    return venv / "bin"
+    return _venv_with(wheel, tmp_path_factory.mktemp("plain") / "venv", deps)
 
 
 def _from_checkout(bin_dir: Path, *args: str) -> subprocess.CompletedProcess[str]:
@@ -149,3 +155,143 @@ def test_a_plain_install_batches_from_the_checkout_folder(
     assert done.returncode == 0, done.stdout + done.stderr
     rows = (out / "results.csv").read_text().splitlines()
     assert len(rows) == 2 and ",ok," in rows[1], rows
+
+
+def test_the_wheel_ships_py_typed_and_the_license(wheel: Path) -> None:
+    with zipfile.ZipFile(wheel) as archive:
+        names = archive.namelist()
+        metadata = archive.read(next(n for n in names if n.endswith(".dist-info/METADATA")))
+    assert "pipemap/py.typed" in names  # a user's mypy checks calls into pipemap
+    (license_file,) = [n for n in names if n.endswith("/LICENSE")]
+    assert ".dist-info/" in license_file
+    with zipfile.ZipFile(wheel) as archive:
+        assert b"MIT License" in archive.read(license_file)
+    from pipemap import __version__
+
+    assert f"\nVersion: {__version__}\n".encode() in metadata
+
+
+#: The packages of the extras, which the core install must do without.
+EXTRA_MODULES = ("pybullet", "ray", "rerun")
+
+
+def _requirements(names: list[str]) -> list[str]:
+    """The distribution names of Requires-Dist lines, those of extras left out."""
+    wanted = []
+    for line in names:
+        if "extra ==" in line:
+            continue
+        match = re.match(r"[A-Za-z0-9._-]+", line)
+        if match:
+            wanted.append(match.group(0))
+    return wanted
+
+
+def _core_closure(wheel: Path) -> set[str]:
+    """The distributions the wheel's core needs, found in this environment: its own
+    Requires-Dist without extras, and theirs, over and over."""
+    from importlib import metadata
+
+    with zipfile.ZipFile(wheel) as archive:
+        text = archive.read(
+            next(n for n in archive.namelist() if n.endswith(".dist-info/METADATA"))
+        ).decode()
+    todo = _requirements(
+        [line[15:] for line in text.splitlines() if line.startswith("Requires-Dist: ")]
+    )
+    seen: set[str] = set()
+    while todo:
+        name = todo.pop()
+        key = re.sub(r"[-_.]+", "-", name).lower()
+        if key in seen:
+            continue
+        try:
+            dist = metadata.distribution(name)
+        except metadata.PackageNotFoundError:
+            continue  # a dependency under a marker that does not hold here
+        seen.add(key)
+        todo.extend(_requirements(dist.requires or []))
+    return seen
+
+
+@pytest.fixture(scope="module")
+def core_install(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A virtual environment holding the wheel and its core dependencies alone: this
+    environment's copies of them, linked into a folder of their own that a path file
+    names (nothing of the extras is there); its ``bin`` folder."""
+    from importlib import metadata
+
+    base = tmp_path_factory.mktemp("core")
+    core_site = base / "deps"
+    core_site.mkdir()
+    for name in _core_closure(wheel):
+        dist = metadata.distribution(name)
+        root = Path(str(dist.locate_file("")))
+        tops = {Path(str(f)).parts[0] for f in dist.files or [] if not str(f).startswith("..")}
+        for top in tops:
+            if not (core_site / top).exists() and (root / top).exists():
+                (core_site / top).symlink_to(root / top)
+    return _venv_with(wheel, base / "venv", [str(core_site)])
+
+
+def _core(bin_dir: Path, cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    return subprocess.run(
+        [str(bin_dir / "pipemap"), *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+def test_the_core_install_has_none_of_the_extras(core_install: Path, tmp_path: Path) -> None:
+    for module in EXTRA_MODULES:
+        done = subprocess.run(
+            [str(core_install / "python"), "-c", f"import {module}"],
+            cwd=tmp_path,
+            capture_output=True,
+        )
+        assert done.returncode != 0, f"{module} is importable: the test would prove nothing"
+
+
+def test_the_core_install_replays_and_scores_a_stored_log(
+    core_install: Path, tmp_path: Path
+) -> None:
+    import json
+
+    log = ROOT / "recordings" / "paper_autonomous.mcap"
+    scored = _core(core_install, tmp_path, "score", str(log), "--json")
+    assert scored.returncode == 0, scored.stderr
+    expected = json.loads((ROOT / "recordings" / "paper_autonomous.score.json").read_text())
+    report = json.loads(scored.stdout)
+    assert report["map_correct"] is True and report["decisions"] == expected["decisions"]
+    replayed = _core(core_install, tmp_path, "replay", str(log), "-o", str(tmp_path / "m.json"))
+    assert replayed.returncode == 0, replayed.stderr
+    assert (tmp_path / "m.json").read_bytes() == (
+        ROOT / "recordings" / "paper_autonomous.map.json"
+    ).read_bytes()
+    info = _core(core_install, tmp_path, "info", str(log))
+    assert info.returncode == 0, info.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "extra"),
+    [
+        (["record", "--network", "paper", "-o", "run.mcap"], "sim"),
+        (["sim", "--network", "paper", "--save-sweeps", "sweeps"], "sim"),
+        (["batch", "spec.toml", "--out", "out"], "sim"),
+        (["view", "{log}", "--save", "run.rrd"], "view"),
+    ],
+    ids=["record", "sim", "batch", "view"],
+)
+def test_a_command_whose_extra_is_missing_names_it(
+    core_install: Path, tmp_path: Path, args: list[str], extra: str
+) -> None:
+    log = str(ROOT / "recordings" / "paper_autonomous.mcap")
+    done = _core(core_install, tmp_path, *(a.format(log=log) for a in args))
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1, done.stderr
+    assert f'pip install "pipemap[{extra}]"' in done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # nothing written

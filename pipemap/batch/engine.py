@@ -30,13 +30,8 @@ from typing import Any
 
 from pipemap import __version__
 from pipemap.allocator import keep_freed_memory
-from pipemap.batch.results import (
-    RESULT_FILES,
-    read_result,
-    result_row,
-    write_recording,
-    write_table,
-)
+from pipemap.batch.folder import check_out, finished_results
+from pipemap.batch.results import RESULT_FILES, result_row, write_recording, write_table
 from pipemap.batch.run import run_recording
 from pipemap.batch.signals import held_signals, terminate_as_interrupt
 from pipemap.batch.spec import BatchSpec, RunPoint
@@ -153,33 +148,20 @@ def check_address(address: str, timeout_s: float = 5.0) -> tuple[str, int]:
     return host, port
 
 
-def _check_out(out: Path, resume: bool, force: bool) -> None:
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: is a file, not a folder")
-    if not out.parent.is_dir():
-        raise InputError(f"--out {out}: folder {out.parent} does not exist")
-    if out.is_dir() and any(out.iterdir()) and not (resume or force):
-        raise InputError(
-            f"--out {out}: exists; refusing to touch it without --resume (keep its "
-            "finished runs) or --force (start afresh)"
-        )
-
-
 def plan_batch(spec: BatchSpec, out: Path, options: BatchOptions) -> BatchPlan:
-    """Check the output folder and the cluster's address; nothing is written."""
+    """Check the output folder (with ``resume``, that it holds ``spec``'s runs) and the
+    cluster's address; nothing is written."""
     if options.resume and options.force:
         raise InputError("--resume and --force: choose one")
     if options.workers is not None and options.workers < 1:
         raise InputError(f"--workers {options.workers}: must be at least 1")
-    _check_out(out, options.resume, options.force)
+    check_out(spec, out, options.resume, options.force)
     if options.address is not None:
         check_address(options.address)
     complete: set[str] = set()
     if options.resume and out.is_dir():
-        for point in spec.points:
-            doc = read_result(out, point.run_id)
-            if doc is not None and doc["status"] == "ok":
-                complete.add(point.run_id)
+        found = finished_results(spec, out)
+        complete = {run_id for run_id, doc in found.items() if doc["status"] == "ok"}
     return BatchPlan(spec, out, options, frozenset(complete))
 
 
@@ -418,10 +400,10 @@ def run_batch(
     pending = plan.pending
     summary = BatchSummary(total=len(spec.points), skipped=len(plan.complete))
     started = time.perf_counter()
+    # Every finished run keeps its row, failed ones too until they are made again.
     rows: dict[str, dict[str, Any]] = {}
-    for run_id in plan.complete:
-        doc = read_result(out, run_id)
-        if doc is not None:
+    if plan.options.resume and out.is_dir():
+        for run_id, doc in finished_results(spec, out).items():
             rows[run_id] = result_row(out, doc)
     _prepare_folder(plan)
     written = [0.0]

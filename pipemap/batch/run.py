@@ -107,8 +107,7 @@ def run_recording(
     Returns ``{"record": {...}, "runs": {run_id: {...}}, "log": bytes | None, ...}``.
     Raises whatever recording or scoring raises: the caller retries or records it.
     """
-    from pipemap.recorder import record_run
-    from pipemap.sim.network import build_network
+    from pipemap import api
 
     first = points[0]
     if any(p.recording_key != first.recording_key for p in points):
@@ -119,9 +118,7 @@ def run_recording(
     prefix = f"{SCRATCH_PREFIX}{socket.gethostname()}-{os.getpid()}-"
     with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
         path = Path(tmp) / LOG_NAME
-        settings = first.record_settings()
-        network = build_network(settings.network, seed=settings.seed)
-        recorded = record_run(path, settings, network, __version__, inline=inline)
+        recorded = api.record(path, first.record_settings(), inline=inline)
         record_wall = time.perf_counter() - started
         runs = {p.run_id: _score(path, p) for p in points}
         log = path.read_bytes() if keep_log else None

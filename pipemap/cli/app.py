@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import logging
 import os
 import sys
@@ -55,8 +56,49 @@ COMMANDS: dict[str, str] = {
 }
 
 
+#: The modules of the extras (``pip install "pipemap[EXTRA]"``): the core reads,
+#: replays, scores and matches without them.
+EXTRAS: dict[str, str] = {"pybullet": "sim", "ray": "batch", "rerun": "view"}
+#: The extra modules each command needs, checked before it starts.
+NEEDS: dict[str, tuple[str, ...]] = {
+    "sim": ("pybullet",),
+    "record": ("pybullet",),
+    "experiment": ("pybullet", "ray"),
+    "batch": ("pybullet", "ray"),
+    "view": ("rerun",),
+}
+
+
+def _missing_extra(module: str, command: str) -> MissingExtra:
+    extra = EXTRAS[module]
+    return MissingExtra(
+        f"pipemap {command} needs {module}, which comes with pipemap's {extra!r} extra: "
+        f'python3 -m pip install "pipemap[{extra}]"'
+    )
+
+
+class MissingExtra(PipemapError):
+    """A command needs a package of an extra that is not installed."""
+
+
+def _check_extras(args: argparse.Namespace) -> None:
+    """Every package the command needs is installed (``record --view``: rerun too)."""
+    needed = NEEDS.get(args.command, ())
+    if getattr(args, "view", False) is True:
+        needed += ("rerun",)
+    for module in needed:
+        if importlib.util.find_spec(module) is None:
+            raise _missing_extra(module, args.command)
+
+
 def _run(argv: Sequence[str] | None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        # No command: what there is to run, as argparse reports a missing argument.
+        parser.print_help(sys.stderr)
+        print("pipemap: error: a command is required", file=sys.stderr)
+        return BAD_INPUT
     keep_freed_memory()  # the same results, found sooner (pipemap.allocator)
     apply_presets(args)
     # Other libraries' messages stay at warnings: -v is for pipemap's own decisions.
@@ -64,9 +106,16 @@ def _run(argv: Sequence[str] | None) -> int:
         level=logging.WARNING, format="pipemap: %(levelname)s: %(message)s", stream=sys.stderr
     )
     logging.getLogger("pipemap").setLevel(logging.DEBUG if args.verbose else logging.WARNING)
+    _check_extras(args)
     module, function = COMMANDS[args.command].split(":")
     runner: Runner = getattr(importlib.import_module(module), function)
-    return runner(args, sys.stdout, sys.stderr)
+    try:
+        return runner(args, sys.stdout, sys.stderr)
+    except ModuleNotFoundError as exc:
+        top = (exc.name or "").split(".")[0]
+        if top in EXTRAS:  # a path of the command that NEEDS does not know of
+            raise _missing_extra(top, args.command) from None
+        raise
 
 
 #: Environment variables that size the BLAS thread pool (OpenBLAS reads the first it

@@ -68,6 +68,7 @@ def add_map(sub: Subparsers) -> None:
     )
     _add_matching_options(p)
     add_rule_options(p)
+    arguments.add_verbose(p)
 
 
 def add_route(sub: Subparsers) -> None:

@@ -65,7 +65,7 @@ def add_similarity_options(p: argparse.ArgumentParser) -> None:
     defaults are the paper's Algorithm 2)."""
     p.add_argument(
         "--downsample",
-        type=arguments.positive_int,
+        type=arguments.downsample,
         default=None,
         help="fast path: column decimation factor of the accurate stage (default 4)",
     )

@@ -19,6 +19,8 @@ from types import FrameType
 from typing import Any, TextIO
 
 from pipemap import __version__
+from pipemap.cli.run_settings import check_condition_flags, explore_policy
+from pipemap.cli.slow import SlowNotice, world_notice
 from pipemap.errors import InputError, ViewerError
 
 __all__ = ["run_info", "run_record"]
@@ -44,16 +46,22 @@ def _interrupt_once() -> Callable[[], None]:
     return restore
 
 
-def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
-    if not err.isatty():
-        return None
+def _progress_printer(err: TextIO, notice: SlowNotice) -> Callable[[Any], None]:
+    """The recording's progress: the world's build announced when it is slow, then,
+    on a terminal, one line kept up to date."""
+    tty = err.isatty()
 
     def show(p: Any) -> None:
-        err.write(
-            f"\rrecording: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
-            f"{p.visits} node visits "
-        )
-        err.flush()
+        if not p.world_ready:
+            notice.start()
+            return
+        notice.stop()
+        if tty:
+            err.write(
+                f"\rrecording: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
+                f"{p.visits} node visits "
+            )
+            err.flush()
 
     return show
 
@@ -85,11 +93,13 @@ def _conditions_note(simulator: Any) -> str:
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, run the episode while writing its log, print a summary."""
+    from pipemap import api
     from pipemap.cli.outputs import output_file
-    from pipemap.recorder import RecordSettings, record_run
+    from pipemap.recorder import RecordSettings
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
 
+    check_condition_flags(args)
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
@@ -119,7 +129,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         images_per_sweep=args.images,
         align_sweeps=args.align_sweeps,
         threshold=args.threshold,
-        explore=Explore(args.explore),
+        explore=Explore(explore_policy(args)),
         lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
         tilt_rad=math.radians(args.tilt_deg),
         obstacles=args.obstacles,
@@ -133,24 +143,26 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         from pipemap.cli.view_command import live_view
 
         live = live_view(settings.metadata(network, __version__), args.threshold, args.connect)
-    progress = _progress_printer(err)
+    notice = world_notice(err, args.network, network)
+    progress = _progress_printer(err, notice)
     restore = _interrupt_once()
     try:
-        result = record_run(target, settings, network, __version__, progress, args.force, live)
+        result = api.record(target, settings, args.force, progress, live)
     except KeyboardInterrupt:
-        if progress is not None:
+        if err.isatty():
             err.write("\n")
         err.write(f"pipemap: interrupted: {target} closed with everything recorded so far\n")
         return 130
     finally:
+        notice.stop()
         restore()
         shown = _close_live(live, err)
-    if progress is not None:
+    if err.isatty():
         err.write("\n")
     size_mb = target.stat().st_size / 1e6
     condition = args.condition
     if condition == "autonomous":
-        condition += f" (explore {args.explore})"
+        condition += f" (explore {explore_policy(args)})"
     status = result.status
     if result.status == "finished" and not result.ok:
         status = "finished, but not every node and pipe was visited"

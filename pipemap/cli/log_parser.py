@@ -16,13 +16,17 @@ if TYPE_CHECKING:
 __all__ = ["add_info", "add_replay", "add_score", "add_view"]
 
 
-def _add_log(p: argparse.ArgumentParser) -> None:
-    p.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
+def _add_log(p: argparse.ArgumentParser, several: bool = False) -> None:
+    if several:
+        p.add_argument("log", metavar="RUN.mcap", nargs="+", help="pipemap logs, one or more")
+    else:
+        p.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
 
 
-def _add_replay_options(p: argparse.ArgumentParser) -> None:
-    """The log and the localizer that replays it: shared by replay, score and view."""
-    _add_log(p)
+def _add_replay_options(p: argparse.ArgumentParser, several: bool = False) -> None:
+    """The log (``several``: logs) and the localizer that replays it: shared by
+    replay, score and view."""
+    _add_log(p, several)
     add_threshold(p)
     p.add_argument("--no-active-vision", action="store_true", help="never ask for probe sweeps")
     add_similarity_options(p)
@@ -56,24 +60,31 @@ def add_replay(sub: Subparsers) -> None:
         "visit (foxglove.PoseInFrame, /tf), the map (foxglove.SceneUpdate), the decisions",
     )
     arguments.add_force(p, "overwrite existing files")
+    arguments.add_verbose(p)
 
 
 def add_score(sub: Subparsers) -> None:
     """``pipemap score RUN.mcap``: a replay compared with the log's ground truth."""
     p = sub.add_parser(
         "score",
-        help="replay a log and score the map against its ground truth",
-        description="Replay a log and compare every decision and the map with the log's /truth.",
+        help="replay logs and score each map against its ground truth",
+        description="Replay each log and compare every decision and the map with the log's "
+        "/truth; several logs are scored one after another, a report each.",
     )
-    _add_replay_options(p)
-    arguments.add_json(p)
+    _add_replay_options(p, several=True)
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help="print one JSON object (for several logs, a JSON list of one object per log)",
+    )
     arguments.add_output(
         p,
         "--save-results",
         metavar="DIR",
-        helptext="write score.json and visits.csv to this new or empty folder",
+        helptext="write score.json and visits.csv to this new or empty folder (one log only)",
     )
     arguments.add_force(p, "replace the files of an earlier score")
+    arguments.add_verbose(p)
 
 
 def add_view(sub: Subparsers) -> None:

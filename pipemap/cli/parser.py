@@ -10,7 +10,7 @@ import argparse
 import sys
 
 from pipemap import __version__
-from pipemap.cli.arguments import OneLineParser
+from pipemap.cli.arguments import OneLineParser, add_verbose
 from pipemap.cli.batch_parser import add_batch, add_batch_report, add_experiment
 from pipemap.cli.folder_parser import add_map, add_match, add_route
 from pipemap.cli.log_parser import add_info, add_replay, add_score, add_view
@@ -45,14 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Topological localization and mapping of robots in buried pipe networks.",
     )
     parser.add_argument("--version", action="version", version=f"pipemap {__version__}")
-    parser.add_argument(
-        "-v",
-        "--verbose",
-        action="store_true",
-        help="print each decision as it is made (replay, score, record, map) to stderr",
-    )
+    add_verbose(parser, top=True)
+    # Not required: without a command, pipemap prints its usage (see pipemap.cli.app).
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
-    sub.required = True
     for add_command in _COMMANDS:
         add_command(sub)
     return parser

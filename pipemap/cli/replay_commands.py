@@ -22,7 +22,7 @@ from pipemap.cli.localizer_options import (
     two_view_settings,
 )
 from pipemap.cli.outputs import output_file, output_folder, write_text
-from pipemap.errors import WriteError
+from pipemap.errors import InputError, WriteError
 
 __all__ = [
     "localizer_config",
@@ -132,29 +132,58 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 
 
 def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
-    """Replay a log, compare with its truth, print (and save) the score."""
-    from pipemap.replay import SCORE_TOPICS, StreamSource, replay, score_replay
+    """Replay each log, compare with its truth, print (and save) the scores: one
+    report per log, in the order given (``--json``: one object, a list of them for
+    several logs)."""
+    from pipemap.replay import SCORE_TOPICS, StreamSource
 
+    logs = list(args.log)
     folder = None
     if args.save_results is not None:
+        if len(logs) > 1:
+            raise InputError(
+                f"--save-results {args.save_results}: takes one log's score, got {len(logs)} "
+                "logs (score them one at a time)"
+            )
         folder = output_folder(args.save_results, "--save-results", args.force)
     config = localizer_config(args)
-    source = StreamSource(Path(args.log), SCORE_TOPICS)
-    result = replay(source, config, progress_printer(err), keep_sets=False)
-    report = score_replay(result, source, config.threshold, config.fast)
-    report_damage(args.log, source.contents, err)
-    for warning in result.warnings:
-        err.write(f"pipemap: note: {warning}\n")
+    # Every log is opened before the first is replayed: a missing one is found first.
+    sources = [StreamSource(Path(log), SCORE_TOPICS) for log in logs]
+    pairs = zip(logs, sources, strict=True)
+    reports = [_score_log(log, source, config, err) for log, source in pairs]
     if folder is not None:
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise WriteError(f"{folder}: cannot make the folder ({exc.strerror})") from None
-        write_text(folder / "score.json", report.json_text())
-        write_text(folder / "visits.csv", report.csv_text())
+        write_text(folder / "score.json", reports[0].json_text())
+        write_text(folder / "visits.csv", reports[0].csv_text())
     if args.json:
-        out.write(report.json_text())
+        texts = [report.json_text() for report in reports]
+        if len(texts) == 1:
+            out.write(texts[0])
+        else:
+            out.write("[\n" + ",\n".join(t.rstrip("\n") for t in texts) + "\n]\n")
         return 0
+    texts = [_report_text(log, report) for log, report in zip(logs, reports, strict=True)]
+    out.write("\n".join(texts))
+    return 0
+
+
+def _score_log(log: str, source: Any, config: Any, err: TextIO) -> Any:
+    """The score report of one log, its damage and the replay's notes said on ``err``."""
+    from pipemap.replay import replay, score_replay
+
+    result = replay(source, config, progress_printer(err), keep_sets=False)
+    report = score_replay(result, source, config.threshold, config.fast)
+    report_damage(log, source.contents, err)
+    for warning in result.warnings:
+        err.write(f"pipemap: note: {warning}\n")
+    return report
+
+
+def _report_text(log: str, report: Any) -> str:
+    """``pipemap score``'s text report of one log."""
     doc = report.document()
     counts = doc["decisions"]
     sim = doc["similarity"]
@@ -162,7 +191,7 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
     cov = doc["coverage"]
     status = {"correct": "correct", "partial": "partial", "wrong": "WRONG"}[doc["map"]]
     lines = [
-        f"log         {args.log} ({doc['integrity']})",
+        f"log         {log} ({doc['integrity']})",
         f"map         {status}: {doc['predicted_nodes']} junctions for {doc['true_nodes']} "
         f"true nodes visited, {doc['visits']} visits",
     ]
@@ -213,8 +242,7 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
             f"{_num(v['rotation_error_rad']):<9}  {_port(v['arrival_port']):<2}  "
             f"{_port(v['departure_port']):<3}  {v['outcome']}"
         )
-    out.write("\n".join(lines) + "\n")
-    return 0
+    return "\n".join(lines) + "\n"
 
 
 def _num(value: float | None, decimals: int = 4) -> str:

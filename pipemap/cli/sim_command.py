@@ -22,6 +22,8 @@ from typing import TYPE_CHECKING, Any, TextIO
 import numpy as np
 
 from pipemap.cli.outputs import output_folder
+from pipemap.cli.run_settings import check_condition_flags, explore_policy
+from pipemap.cli.slow import world_notice
 from pipemap.errors import InputError, WriteError
 from pipemap.imagesets import RobotNotes, write_image_set
 
@@ -74,6 +76,7 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
 
+    check_condition_flags(args)
     target = output_folder(args.save_sweeps, "--save-sweeps", args.force)
     network = build_network(args.network, seed=args.seed)
     condition = Condition(args.condition)
@@ -94,8 +97,10 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     deposits, faults = _real_conditions(args, network, condition)
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
-        return _run_autonomous(args, network, camera, target, out, deposits, faults)
-    with World(network, seed=args.seed) as world:
+        return _run_autonomous(args, network, camera, target, out, err, deposits, faults)
+    with world_notice(err, args.network, network):
+        world = World(network, seed=args.seed)
+    with world:
         episode = Episode(world, config, start=args.start)
         localizer = None
         if condition is Condition.ACTIVE:
@@ -129,28 +134,12 @@ def _real_conditions(
     args: argparse.Namespace, network: Network, condition: Condition
 ) -> tuple[tuple[Obstacle, ...], tuple[MotorFault, ...]]:
     """The floor deposits of ``--obstacles`` and the motor cut-outs of
-    ``--motor-faults`` (autonomous only), checked before any work."""
+    ``--motor-faults`` (autonomous only: :func:`check_condition_flags`), checked before
+    any work."""
     from pipemap.errors import SimError
-    from pipemap.sim.episode import Condition
     from pipemap.sim.motor_faults import draw_motor_faults
     from pipemap.sim.obstacles import place_obstacles
 
-    if condition is not Condition.AUTONOMOUS:
-        placed = f"placed by hand ({condition.value})"
-        for count, why in (
-            (
-                args.obstacles,
-                f"--obstacles: only the autonomous robot drives into deposits; "
-                f"{placed} it never meets one",
-            ),
-            (
-                args.motor_faults,
-                f"--motor-faults: only the autonomous robot drives; {placed} "
-                "its motors never cut out",
-            ),
-        ):
-            if count:
-                raise InputError(why)
     try:
         deposits = place_obstacles(network, args.obstacles, args.seed)
     except SimError as error:
@@ -166,7 +155,7 @@ def _conditions(deposits: tuple[Obstacle, ...], faults: tuple[MotorFault, ...]) 
 
 
 def _run_autonomous(  # type: ignore[no-untyped-def]
-    args, network, camera, target: Path, out: TextIO, deposits=(), faults=()
+    args, network, camera, target: Path, out: TextIO, err: TextIO, deposits=(), faults=()
 ) -> int:
     """The full exploration by the sensor-driven controller; sweeps are kept whatever
     ends it. With ``--explore map`` the localizer runs online and the robot explores
@@ -177,7 +166,7 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
     from pipemap.sim.stream import NodeDeparture, NodeExits, SimRecord
     from pipemap.sim.world import World
 
-    explore = Explore(args.explore)
+    explore = Explore(explore_policy(args))
     online = OnlineLocalizer(
         Localizer(LocalizerConfig().for_camera(camera.lamp_strength > 0.0)), camera.fov_rad
     )
@@ -192,7 +181,9 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
             n = notes[record.visit_id]
             notes[record.visit_id] = RobotNotes(n.exits_rad, record.exit_rad, n.odometer_m)
 
-    with World(network, seed=args.seed, obstacles=deposits) as world:
+    with world_notice(err, args.network, network):
+        world = World(network, seed=args.seed, obstacles=deposits)
+    with world:
         config = ExplorerConfig(
             images_per_sweep=args.images,
             align_sweeps=args.align_sweeps,

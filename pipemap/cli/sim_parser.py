@@ -69,8 +69,8 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
     p.add_argument(
         "--explore",
         choices=["map", "right-hand"],
-        default="map",
-        help="autonomous condition: how the robot chooses exits; map (default): every "
+        default=None,
+        help="autonomous condition only: how the robot chooses exits; map (default): every "
         "untraversed pipe of its own map, Trémaux-style, then back to the start; "
         "right-hand: the paper's right-most-branch rule",
     )
@@ -121,6 +121,7 @@ def add_record(sub: Subparsers) -> None:
         p, "-o", "--output", required=True, metavar="RUN.mcap", helptext="log file"
     )
     arguments.add_force(p, "overwrite an existing log")
+    arguments.add_verbose(p)
     p.add_argument(
         "--image-format",
         choices=("png", "jpeg"),

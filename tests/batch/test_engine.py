@@ -4,7 +4,9 @@ dies is recorded as failed with its reason, and the batch goes on."""
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import json
 import os
 import subprocess
@@ -18,6 +20,7 @@ import pytest
 from pipemap.batch import BatchOptions, parse_spec, plan_batch, run_batch
 from pipemap.batch.engine import _quiet_ray
 from pipemap.batch.spec import RunPoint
+from pipemap.cli import main
 
 SPEC = """
 [grid]
@@ -149,6 +152,45 @@ def test_failures_are_retried_once_then_recorded(ray_here: None, tmp_path: Path)
     assert {p.name.split("-")[0] for p in marks.iterdir()} == {"seed2", "seed3"}
     table = json.loads((out / "results.json").read_text())
     assert table["runs_finished"] == 8 and table["runs_failed"] == 4
+
+    # A resume stopped while its runs go keeps every finished run's row, the failed
+    # ones too (their folders are still there): the table is as it was.
+    before = (out / "results.csv").read_bytes()
+
+    def stop(event: Any) -> None:
+        if event.kind == "tick":
+            raise KeyboardInterrupt
+
+    plan = plan_batch(spec, out, BatchOptions(resume=True))
+    summary = run_batch(plan, stop, task=sleeper)
+    (marks / "release").touch()
+    assert summary.interrupted and summary.done == 0
+    assert (out / "results.csv").read_bytes() == before
+    assert json.loads((out / "results.json").read_text())["runs_finished"] == 8
+
+    # Resuming it with another SPEC is refused, the folder untouched.
+    other = out.parent / "other.toml"
+    other.write_text(SPEC.replace("[0, 1, 2, 3]", "[0, 1]"))
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = main(["batch", str(other), "--out", str(out), "--resume"])
+    assert code == 2 and err.getvalue().count("\n") == 1, err.getvalue()
+    assert "seed (0, 1, 2, 3 there; 0, 1 here)" in err.getvalue()
+    assert (out / "results.csv").read_bytes() == before
+    assert (out / "spec.toml").read_text() == SPEC
+
+
+def sleeper(points: Sequence[RunPoint], keep_log: bool) -> dict[str, Any]:
+    """A run that is still going when the batch is stopped; it ends when the test
+    releases it (the test's Ray outlives the batch, and its cores are shared)."""
+    import time
+
+    release = Path(MARKS) / "release"
+    for _ in range(1200):
+        if release.exists():
+            break
+        time.sleep(0.1)
+    raise RuntimeError("released")
 
 
 def threads_reported(points: Sequence[RunPoint], keep_log: bool) -> dict[str, Any]:

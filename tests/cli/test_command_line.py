@@ -54,11 +54,6 @@ def test_bad_matching_option(
     assert line.endswith(value), line
 
 
-def test_no_command(capfd: pytest.CaptureFixture[str]) -> None:
-    status, out, err = run([], capfd)
-    assert_one_error(status, out, err, "COMMAND")
-
-
 def test_command_without_folders(capfd: pytest.CaptureFixture[str]) -> None:
     status, out, err = run(["map"], capfd)
     assert_one_error(status, out, err, "DIR")

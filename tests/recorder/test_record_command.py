@@ -337,15 +337,17 @@ def test_record_hands_the_exploration_policy_to_the_run(
     seen = []
 
     def fake_record_run(  # type: ignore[no-untyped-def]
-        path, settings, network, version, progress=None, overwrite=False, observer=None
+        path, settings, network, version, *rest
     ):
         seen.append(settings)
         path.write_bytes(b"")
         return session.RecordResult("finished", True, 0, 0, 0.0, 0, 0, frozenset(), 7)
 
-    monkeypatch.setattr(session, "record_run", fake_record_run)
-    # ``pipemap.recorder`` loads it lazily and keeps it once loaded.
+    # ``pipemap.recorder`` loads it lazily and keeps it once loaded: patched first, so
+    # that what it keeps after the test is the real one (patched after the session,
+    # its lazy load would keep the fake for every later test).
     monkeypatch.setattr(package, "record_run", fake_record_run, raising=False)
+    monkeypatch.setattr(session, "record_run", fake_record_run)
     status = main(["record", "--network", "paper", *extra, "-o", str(tmp_path / "x.mcap")])
     assert status == 0
     assert [s.explore.value for s in seen] == [explore]
