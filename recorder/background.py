@@ -8,8 +8,9 @@ one writer, records in the run's order.
 
 Whatever ends the run, the log is closed with everything sent: the parent sends
 ``finish`` with the result metadata (also after Ctrl-C), and if the parent dies the
-writer sees the pipe close and finishes the file itself. The writer ignores Ctrl-C,
-which the terminal sends to both processes: closing the log is the parent's call.
+writer sees the pipe close and finishes the file itself. The writer runs in a session
+of its own, so that the terminal's Ctrl-C and hang-up reach the parent alone (and it
+ignores them, should one be sent to it): closing the log is the parent's call.
 """
 
 from __future__ import annotations
@@ -165,6 +166,12 @@ class BackgroundWriter(FinishesOnExit):
             ],
             pass_fds=(records_read, replies_write),
             stdin=subprocess.DEVNULL,
+            # A session of its own: the terminal's Ctrl-C and hang-up, and a signal
+            # sent to the command's process group, reach the recording process alone,
+            # even while the writer is still starting (before it could ignore them).
+            # Ending the log is the recording process's call; if that process dies,
+            # the writer sees its pipe close and finishes the file itself.
+            start_new_session=True,
         )
         os.close(records_read)
         os.close(replies_write)

@@ -57,6 +57,8 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
     "pipemap.imagesets": ("pipemap.localizer", "pipemap.errors", "pipemap.pngcheck"),
     # Byte-level checks of image formats, shared by the log and image-set readers.
     "pipemap.pngcheck": (),
+    # Stop signals raised as Ctrl-C is (the command line, a batch's driver).
+    "pipemap.stops": ("pipemap.errors",),
     # The Python API: what the CLI calls, and what a script or notebook imports.
     "pipemap.api": (
         "pipemap.api",

@@ -1,8 +1,8 @@
 """``pipemap record`` and ``pipemap info``: write a run's log, and describe one.
 
 ``record`` validates everything before it creates the file, refuses to overwrite
-without ``--force``, and on Ctrl-C (or SIGTERM) closes the log properly with what
-was recorded so far and exits 130 saying so. ``info`` reads a log whole, or up to
+without ``--force``, and on Ctrl-C (or SIGTERM, SIGHUP) closes the log properly with
+what was recorded so far and exits 130 (143, 129) saying so. ``info`` reads a log whole, or up to
 where it was cut or damaged, and says which.
 """
 
@@ -11,37 +11,16 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import signal
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from types import FrameType
 from typing import Any, TextIO
 
 from pipemap import __version__
+from pipemap.cli.exits import stop_signals, stopped_status
 from pipemap.errors import InputError, ViewerError
 
 __all__ = ["run_info", "run_record"]
-
-
-def _interrupt_once() -> Callable[[], None]:
-    """Turn the first SIGINT or SIGTERM into KeyboardInterrupt and ignore the rest, so
-    that a second Ctrl-C cannot break the closing of the log. Returns a restorer."""
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        for s in previous:
-            signal.signal(s, signal.SIG_IGN)
-        raise KeyboardInterrupt
-
-    for s in previous:
-        signal.signal(s, handler)
-
-    def restore() -> None:
-        for s, h in previous.items():
-            signal.signal(s, h)
-
-    return restore
 
 
 def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
@@ -130,16 +109,18 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
 
         live = live_view(settings.metadata(network, __version__), args.threshold, args.connect)
     progress = _progress_printer(err)
-    restore = _interrupt_once()
     try:
-        result = record_run(target, settings, network, __version__, progress, args.force, live)
-    except KeyboardInterrupt:
+        with stop_signals():
+            result = record_run(target, settings, network, __version__, progress, args.force, live)
+    except KeyboardInterrupt as exc:
         if progress is not None:
             err.write("\n")
-        err.write(f"pipemap: interrupted: {target} closed with everything recorded so far\n")
-        return 130
+        status, name = stopped_status(exc)
+        err.write(
+            f"pipemap: interrupted ({name}): {target} closed with everything recorded so far\n"
+        )
+        return status
     finally:
-        restore()
         shown = _close_live(live, err)
     if progress is not None:
         err.write("\n")
