@@ -16,7 +16,10 @@ to the robot's heading), ``departure: A`` (the pipe it left by) and
 from __future__ import annotations
 
 import math
+import os
 import re
+import secrets
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipemap.errors import InputError
+from pipemap.errors import InputError, WriteError
 from pipemap.localizer import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
 from pipemap.pngcheck import PNG_SIGNATURE, png_problem
 
@@ -211,11 +214,36 @@ def write_image_set(
     and the robot's ``notes``, go to ``sweep.txt``. The folder must not exist yet.
     """
     path = Path(folder)
-    path.mkdir(parents=True, exist_ok=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.exists():
+        raise InputError(f"{path}: exists already")
+    # Written whole or not at all: in a temporary folder beside it, renamed when done.
+    partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}.partial")
+    try:
+        partial.mkdir()
+        _write_files(partial, images, info, camera_angle_rad, notes)
+        os.rename(partial, path)
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        shutil.rmtree(partial, ignore_errors=True)
+
+
+def _write_files(
+    path: Path,
+    images: np.ndarray,
+    info: dict[str, str],
+    camera_angle_rad: float,
+    notes: RobotNotes | None,
+) -> None:
     for i, image in enumerate(images, start=1):
         bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if image.ndim == 3 else image
-        if not cv2.imwrite(str(path / f"camera_image{i}.png"), bgr):
-            raise InputError(f"{path}: cannot write camera_image{i}.png")
+        # Encoded in memory and written by Python: a full disk is an OSError here,
+        # never libpng's own complaint on standard error.
+        done, png = cv2.imencode(".png", bgr)
+        if not done:
+            raise InputError(f"{path}: cannot encode camera_image{i}.png")
+        (path / f"camera_image{i}.png").write_bytes(png.tobytes())
     lines = [f"{key}: {value}" for key, value in info.items()]
     (path / "info.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     lines = []
