@@ -37,16 +37,22 @@ def _new_partial(path: Path) -> Path:
 
 
 @contextlib.contextmanager
-def partial_path(path: Path | str) -> Iterator[Path]:
+def partial_path(path: Path | str, replace: bool = True) -> Iterator[Path]:
     """A fresh temporary path beside ``path``, for a writer that takes a file name;
     renamed onto ``path`` when the block ends normally, removed otherwise. A failure
-    to rename is a :class:`WriteError`."""
+    to rename is a :class:`WriteError`. With ``replace`` false an existing ``path``
+    is never replaced: that is a :class:`FileExistsError`."""
     path = Path(path)
     partial = _new_partial(path)
     try:
         yield partial
         try:
-            os.replace(partial, path)
+            if replace:
+                os.replace(partial, path)
+            else:
+                os.link(partial, path)  # one step that fails if ``path`` exists
+        except FileExistsError:
+            raise
         except OSError as exc:
             raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
     finally:
@@ -54,13 +60,16 @@ def partial_path(path: Path | str) -> Iterator[Path]:
             partial.unlink()
 
 
-def write_whole(path: Path | str, data: bytes | str) -> None:
+def write_whole(path: Path | str, data: bytes | str, replace: bool = True) -> None:
     """Write ``data`` (text as UTF-8) to ``path`` whole or not at all; a failure (a
-    full disk, the file size limit) is a :class:`WriteError` naming the file."""
+    full disk, the file size limit) is a :class:`WriteError` naming the file. With
+    ``replace`` false an existing ``path`` is a :class:`FileExistsError`."""
     path = Path(path)
     payload = data.encode("utf-8") if isinstance(data, str) else data
     try:
-        with partial_path(path) as partial, partial.open("wb") as stream:
+        with partial_path(path, replace) as partial, partial.open("wb") as stream:
             stream.write(payload)
+    except FileExistsError:
+        raise
     except OSError as exc:
         raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None

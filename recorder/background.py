@@ -16,6 +16,7 @@ ignores them, should one be sent to it): closing the log is the parent's call.
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import pickle
 import queue
@@ -33,6 +34,7 @@ from pipemap.errors import InputError, WriteError
 from pipemap.recorder.convert import LogRecord, RecordConverter
 from pipemap.recorder.inline import FinishesOnExit
 from pipemap.recorder.writer import LogWriter
+from pipemap.wholefile import write_whole
 
 __all__ = ["BackgroundWriter", "writer_main"]
 
@@ -93,7 +95,9 @@ def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> i
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     run_metadata = _receive(records)
     try:
-        output = cast(BinaryIO, open(path, mode))  # noqa: SIM115 - closed after the summary
+        # Opened over the placeholder log (BackgroundWriter), not emptied: the log's
+        # first bytes are the placeholder's own, so the file reads at every moment.
+        output = cast(BinaryIO, open(path, "r+b"))  # noqa: SIM115 - closed after the summary
     except OSError as exc:
         _reply(replies, ("error", f"{path}: {exc.strerror}"))
         return 1
@@ -111,6 +115,10 @@ def _write(
     output: BinaryIO, records: BinaryIO, replies: BinaryIO, run_metadata: dict[str, str]
 ) -> int:
     writer = LogWriter(output, run_metadata)
+    # The header and pipemap.run, the same bytes as the placeholder's: from here the
+    # file is this log, cut short where it has got to (pipemap info and replay read it).
+    output.flush()
+    output.truncate()
     convert = RecordConverter(writer)
     _reply(replies, ("ready", None))
     result: dict[str, str] | None = {"status": "lost its run: the recording process ended"}
@@ -134,8 +142,28 @@ def _write(
         _reply(replies, ("error", traceback.format_exc()))
         return 1
     writer.finish(result)
+    output.truncate()
     _reply(replies, ("done", writer.messages))
     return 0
+
+
+#: The result a log says until its writer has written its own: the writer never started.
+PLACEHOLDER_STATUS = "lost its run: the log writer ended before it wrote anything"
+
+
+def _write_placeholder(path: Path, mode: str, run_metadata: Mapping[str, str]) -> None:
+    """Put a whole log of no messages at ``path`` before the writer starts, so that
+    from the start of a recording the named log exists and reads (a writer killed
+    before its first bytes leaves this). It starts with the very bytes the writer
+    writes first (the header and ``pipemap.run``), which the writer writes over it."""
+    placeholder = io.BytesIO()
+    LogWriter(placeholder, run_metadata).finish({"status": PLACEHOLDER_STATUS})
+    try:
+        write_whole(path, placeholder.getvalue(), replace=mode != "xb")
+    except FileExistsError:
+        raise InputError(f"{path}: exists; refusing to overwrite without --force") from None
+    except WriteError as exc:
+        raise WriteError(f"{exc}; no log was written") from None
 
 
 class BackgroundWriter(FinishesOnExit):
@@ -146,6 +174,7 @@ class BackgroundWriter(FinishesOnExit):
     """
 
     def __init__(self, path: Path, mode: str, run_metadata: Mapping[str, str]) -> None:
+        _write_placeholder(path, mode, run_metadata)
         # Two pipes of our own: the child's stdout stays free for whatever its imports print.
         records_read, records_write = os.pipe()
         replies_read, replies_write = os.pipe()
@@ -196,7 +225,8 @@ class BackgroundWriter(FinishesOnExit):
         self._close()
         return WriteError(
             f"{why}; {self._path} holds what was written before, cut short "
-            "(pipemap info and replay read it)"
+            "(pipemap info and replay read it; a log of no messages if the writer "
+            "had written nothing)"
         )
 
     def _receive(self) -> tuple[str, Any]:
