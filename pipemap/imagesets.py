@@ -29,7 +29,7 @@ import numpy as np
 
 from pipemap.errors import InputError, WriteError
 from pipemap.localizer import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
-from pipemap.pngcheck import PNG_SIGNATURE, png_problem
+from pipemap.pngcheck import MAX_IMAGE_SIDE_PX, PNG_SIGNATURE, image_size, png_problem
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -68,19 +68,30 @@ def _image_files(folder: Path) -> list[Path]:
 
 
 def _read_gray(path: Path) -> np.ndarray:
+    if not path.is_file():  # a FIFO or a device would block the read, or never end
+        raise InputError(f"{path}: not a regular file")
     data = path.read_bytes()
     # libjpeg decodes a truncated JPEG with only a warning: demand the end marker.
     if path.suffix.lower() in (".jpg", ".jpeg") and not data.rstrip(b"\0").endswith(b"\xff\xd9"):
         raise InputError(f"{path}: truncated or corrupt JPEG image")
     if not data:
         raise InputError(f"{path}: empty file, not an image")
+    size = image_size(data)
+    if size is not None and max(size) > MAX_IMAGE_SIDE_PX:
+        raise InputError(
+            f"{path}: an image of {size[0]}x{size[1]} pixels; pipemap reads images of at "
+            f"most {MAX_IMAGE_SIDE_PX} pixels a side"
+        )
     # libpng reports a damaged PNG on stderr itself: check the chunks and their CRCs first.
     if data.startswith(PNG_SIGNATURE):
         problem = png_problem(data)
         if problem:
             raise InputError(f"{path}: {problem}")
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
-    if image is None or image.size == 0:
+    try:
+        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
+    except cv2.error:  # OpenCV's own checks (a size past its limit, in another format)
+        image = None
+    if image is None or image.size == 0 or max(image.shape) > MAX_IMAGE_SIDE_PX:
         raise InputError(f"{path}: not a readable image")
     return image
 
