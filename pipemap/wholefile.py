@@ -4,7 +4,8 @@ A file is written under a temporary name in its own folder (``.NAME.XXXX.partial
 and renamed onto its name only when every byte is written, so that a full disk, a
 kill or a stop signal part-way never leaves a half-written map, table or image under
 the asked name, and an earlier file of that name stays as it was until then. The
-rename is one step on POSIX file systems. The standard library and the error root
+rename is one step on POSIX file systems. A device or a FIFO given as the output
+(``/dev/null``) is written in place, never replaced. The standard library and the error root
 only, so that every layer may use it.
 """
 
@@ -43,6 +44,11 @@ def partial_path(path: Path | str, replace: bool = True) -> Iterator[Path]:
     to rename is a :class:`WriteError`. With ``replace`` false an existing ``path``
     is never replaced: that is a :class:`FileExistsError`."""
     path = Path(path)
+    if path.exists() and not path.is_file():
+        # A device or a FIFO (/dev/null, a named pipe): written in place, never
+        # replaced by a regular file of its name.
+        yield path
+        return
     partial = _new_partial(path)
     try:
         yield partial

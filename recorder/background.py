@@ -97,12 +97,13 @@ def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> i
     try:
         # Opened over the placeholder log (BackgroundWriter), not emptied: the log's
         # first bytes are the placeholder's own, so the file reads at every moment.
-        output = cast(BinaryIO, open(path, "r+b"))  # noqa: SIM115 - closed after the summary
+        in_place = os.path.isfile(path)  # else a device: written as it is
+        output = cast(BinaryIO, open(path, "r+b" if in_place else mode))  # noqa: SIM115
     except OSError as exc:
         _reply(replies, ("error", f"{path}: {exc.strerror}"))
         return 1
     try:
-        return _write(output, records, replies, run_metadata)
+        return _write(output, records, replies, run_metadata, in_place)
     except OSError as exc:
         _reply(replies, ("failed", f"writing {path} failed: {exc.strerror or exc}"))
         return 1
@@ -112,13 +113,18 @@ def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> i
 
 
 def _write(
-    output: BinaryIO, records: BinaryIO, replies: BinaryIO, run_metadata: dict[str, str]
+    output: BinaryIO,
+    records: BinaryIO,
+    replies: BinaryIO,
+    run_metadata: dict[str, str],
+    in_place: bool,
 ) -> int:
     writer = LogWriter(output, run_metadata)
     # The header and pipemap.run, the same bytes as the placeholder's: from here the
     # file is this log, cut short where it has got to (pipemap info and replay read it).
     output.flush()
-    output.truncate()
+    if in_place:
+        output.truncate()
     convert = RecordConverter(writer)
     _reply(replies, ("ready", None))
     result: dict[str, str] | None = {"status": "lost its run: the recording process ended"}
@@ -142,7 +148,8 @@ def _write(
         _reply(replies, ("error", traceback.format_exc()))
         return 1
     writer.finish(result)
-    output.truncate()
+    if in_place:
+        output.truncate()
     _reply(replies, ("done", writer.messages))
     return 0
 
@@ -156,6 +163,8 @@ def _write_placeholder(path: Path, mode: str, run_metadata: Mapping[str, str]) -
     from the start of a recording the named log exists and reads (a writer killed
     before its first bytes leaves this). It starts with the very bytes the writer
     writes first (the header and ``pipemap.run``), which the writer writes over it."""
+    if path.exists() and not path.is_file():
+        return  # a device or a FIFO (/dev/null): written as it is, nothing put in its place
     placeholder = io.BytesIO()
     LogWriter(placeholder, run_metadata).finish({"status": PLACEHOLDER_STATUS})
     try:
