@@ -28,6 +28,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from pipemap.errors import LogFormatError
 from pipemap.localizer import (
     Decision,
     FastConfig,
@@ -397,6 +398,14 @@ def replay(
     total, once known (``None`` before).
     """
     config = config if config is not None else LocalizerConfig()
+    if not source.run_metadata():
+        # Its record was damaged (the reader accepts such a log for info): the run's
+        # settings, the camera's lamp among them, are not known, and are not guessed.
+        raise LogFormatError(
+            f"{source.name}: its pipemap.run record is damaged: the run's settings are "
+            "lost, so it cannot be replayed as it was recorded (pipemap info lists what "
+            "the log still holds)"
+        )
     try:
         return _Replay(source, config, progress, keep_sets, False, keep_prepared).run()
     except (_WholeLogNeeded, LogTimeWentBack):

@@ -62,6 +62,19 @@ def _conditions_note(simulator: Any) -> str:
     return note
 
 
+def _run_line(meta: dict[str, Any]) -> str:
+    """The ``run`` line of ``info``: the run's settings, or that they are lost."""
+    if "format_version" not in meta:
+        return "run        lost: its pipemap.run record is damaged; the settings are not known"
+    return (
+        f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
+        f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
+        f"explore {meta.get('explore', 'right-hand')}, "
+        f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images"
+        + _conditions_note(meta.get("simulator"))
+    )
+
+
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, run the episode while writing its log, print a summary."""
     from pipemap.cli.outputs import output_file
@@ -277,11 +290,7 @@ def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
         lines += [
             f"duration   {doc['duration_s']:.3f} s simulated",
             f"messages   {doc['messages']}",
-            f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
-            f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
-            f"explore {meta.get('explore', 'right-hand')}, "
-            f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images"
-            + _conditions_note(meta.get("simulator")),
+            _run_line(meta),
             f"sweeps     {doc['sweeps']} complete in {doc['visits']} node visits"
             + (f" ({len(skipped)} skipped by a replay)" if skipped else ""),
             f"result     {result.get('status', 'none recorded')}",
