@@ -10,6 +10,7 @@ from __future__ import annotations
 
 __all__ = [
     "InputError",
+    "Interrupted",
     "LocalizerError",
     "LogFormatError",
     "PipemapError",
@@ -46,3 +47,13 @@ class ViewerError(PipemapError):
 class WriteError(PipemapError):
     """Writing an output failed part-way: a full disk, a killed log writer. What was
     written before stays readable; the command line exits with status 3."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """A stop signal (SIGINT, SIGTERM, SIGHUP) raised where Ctrl-C would be, so that
+    every command cleans up the same way; ``signum`` says which one arrived, and the
+    command line exits with 128 + ``signum``."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = int(signum)

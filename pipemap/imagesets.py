@@ -16,7 +16,10 @@ to the robot's heading), ``departure: A`` (the pipe it left by) and
 from __future__ import annotations
 
 import math
+import os
 import re
+import secrets
+import shutil
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,9 +27,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipemap.errors import InputError
+from pipemap.errors import InputError, WriteError
 from pipemap.localizer import DEFAULT_FOV_RAD, DEFAULT_KEEP_TOP_FRACTION, ImageSet
-from pipemap.pngcheck import PNG_SIGNATURE, png_problem
+from pipemap.pngcheck import MAX_IMAGE_SIDE_PX, PNG_SIGNATURE, image_size, png_problem
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -65,19 +68,30 @@ def _image_files(folder: Path) -> list[Path]:
 
 
 def _read_gray(path: Path) -> np.ndarray:
+    if not path.is_file():  # a FIFO or a device would block the read, or never end
+        raise InputError(f"{path}: not a regular file")
     data = path.read_bytes()
     # libjpeg decodes a truncated JPEG with only a warning: demand the end marker.
     if path.suffix.lower() in (".jpg", ".jpeg") and not data.rstrip(b"\0").endswith(b"\xff\xd9"):
         raise InputError(f"{path}: truncated or corrupt JPEG image")
     if not data:
         raise InputError(f"{path}: empty file, not an image")
+    size = image_size(data)
+    if size is not None and max(size) > MAX_IMAGE_SIDE_PX:
+        raise InputError(
+            f"{path}: an image of {size[0]}x{size[1]} pixels; pipemap reads images of at "
+            f"most {MAX_IMAGE_SIDE_PX} pixels a side"
+        )
     # libpng reports a damaged PNG on stderr itself: check the chunks and their CRCs first.
     if data.startswith(PNG_SIGNATURE):
         problem = png_problem(data)
         if problem:
             raise InputError(f"{path}: {problem}")
-    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
-    if image is None or image.size == 0:
+    try:
+        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
+    except cv2.error:  # OpenCV's own checks (a size past its limit, in another format)
+        image = None
+    if image is None or image.size == 0 or max(image.shape) > MAX_IMAGE_SIDE_PX:
         raise InputError(f"{path}: not a readable image")
     return image
 
@@ -211,11 +225,36 @@ def write_image_set(
     and the robot's ``notes``, go to ``sweep.txt``. The folder must not exist yet.
     """
     path = Path(folder)
-    path.mkdir(parents=True, exist_ok=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.exists():
+        raise InputError(f"{path}: exists already")
+    # Written whole or not at all: in a temporary folder beside it, renamed when done.
+    partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}.partial")
+    try:
+        partial.mkdir()
+        _write_files(partial, images, info, camera_angle_rad, notes)
+        os.rename(partial, path)
+    except OSError as exc:
+        raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        shutil.rmtree(partial, ignore_errors=True)
+
+
+def _write_files(
+    path: Path,
+    images: np.ndarray,
+    info: dict[str, str],
+    camera_angle_rad: float,
+    notes: RobotNotes | None,
+) -> None:
     for i, image in enumerate(images, start=1):
         bgr = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if image.ndim == 3 else image
-        if not cv2.imwrite(str(path / f"camera_image{i}.png"), bgr):
-            raise InputError(f"{path}: cannot write camera_image{i}.png")
+        # Encoded in memory and written by Python: a full disk is an OSError here,
+        # never libpng's own complaint on standard error.
+        done, png = cv2.imencode(".png", bgr)
+        if not done:
+            raise InputError(f"{path}: cannot encode camera_image{i}.png")
+        (path / f"camera_image{i}.png").write_bytes(png.tobytes())
     lines = [f"{key}: {value}" for key, value in info.items()]
     (path / "info.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     lines = []

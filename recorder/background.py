@@ -8,13 +8,15 @@ one writer, records in the run's order.
 
 Whatever ends the run, the log is closed with everything sent: the parent sends
 ``finish`` with the result metadata (also after Ctrl-C), and if the parent dies the
-writer sees the pipe close and finishes the file itself. The writer ignores Ctrl-C,
-which the terminal sends to both processes: closing the log is the parent's call.
+writer sees the pipe close and finishes the file itself. The writer runs in a session
+of its own, so that the terminal's Ctrl-C and hang-up reach the parent alone (and it
+ignores them, should one be sent to it): closing the log is the parent's call.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import pickle
 import queue
@@ -33,6 +35,7 @@ from pipemap.recorder.convert import LogRecord, RecordConverter
 from pipemap.recorder.inline import FinishesOnExit
 from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.writer import LogWriter
+from pipemap.wholefile import write_whole
 
 __all__ = ["BackgroundWriter", "writer_main"]
 
@@ -93,12 +96,15 @@ def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> i
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     run_metadata = _receive(records)
     try:
-        output = cast(BinaryIO, open(path, mode))  # noqa: SIM115 - closed after the summary
+        # Opened over the placeholder log (BackgroundWriter), not emptied: the log's
+        # first bytes are the placeholder's own, so the file reads at every moment.
+        in_place = os.path.isfile(path)  # else a device: written as it is
+        output = cast(BinaryIO, open(path, "r+b" if in_place else mode))  # noqa: SIM115
     except OSError as exc:
         _reply(replies, ("error", f"{path}: {exc.strerror}"))
         return 1
     try:
-        return _write(output, records, replies, run_metadata)
+        return _write(output, records, replies, run_metadata, in_place)
     except OSError as exc:
         _reply(replies, ("failed", f"writing {path} failed: {exc.strerror or exc}"))
         return 1
@@ -108,9 +114,18 @@ def writer_main(records: BinaryIO, replies: BinaryIO, path: str, mode: str) -> i
 
 
 def _write(
-    output: BinaryIO, records: BinaryIO, replies: BinaryIO, run_metadata: dict[str, str]
+    output: BinaryIO,
+    records: BinaryIO,
+    replies: BinaryIO,
+    run_metadata: dict[str, str],
+    in_place: bool,
 ) -> int:
     writer = LogWriter(output, run_metadata)
+    # The header and pipemap.run, the same bytes as the placeholder's: from here the
+    # file is this log, cut short where it has got to (pipemap info and replay read it).
+    output.flush()
+    if in_place:
+        output.truncate()
     convert = RecordConverter(writer, encoding=ImageEncoding.of_run(run_metadata))
     _reply(replies, ("ready", None))
     result: dict[str, str] | None = {"status": "lost its run: the recording process ended"}
@@ -134,8 +149,31 @@ def _write(
         _reply(replies, ("error", traceback.format_exc()))
         return 1
     writer.finish(result)
+    if in_place:
+        output.truncate()
     _reply(replies, ("done", writer.messages))
     return 0
+
+
+#: The result a log says until its writer has written its own: the writer never started.
+PLACEHOLDER_STATUS = "lost its run: the log writer ended before it wrote anything"
+
+
+def _write_placeholder(path: Path, mode: str, run_metadata: Mapping[str, str]) -> None:
+    """Put a whole log of no messages at ``path`` before the writer starts, so that
+    from the start of a recording the named log exists and reads (a writer killed
+    before its first bytes leaves this). It starts with the very bytes the writer
+    writes first (the header and ``pipemap.run``), which the writer writes over it."""
+    if path.exists() and not path.is_file():
+        return  # a device or a FIFO (/dev/null): written as it is, nothing put in its place
+    placeholder = io.BytesIO()
+    LogWriter(placeholder, run_metadata).finish({"status": PLACEHOLDER_STATUS})
+    try:
+        write_whole(path, placeholder.getvalue(), replace=mode != "xb")
+    except FileExistsError:
+        raise InputError(f"{path}: exists; refusing to overwrite without --force") from None
+    except WriteError as exc:
+        raise WriteError(f"{exc}; no log was written") from None
 
 
 class BackgroundWriter(FinishesOnExit):
@@ -146,6 +184,7 @@ class BackgroundWriter(FinishesOnExit):
     """
 
     def __init__(self, path: Path, mode: str, run_metadata: Mapping[str, str]) -> None:
+        _write_placeholder(path, mode, run_metadata)
         # Two pipes of our own: the child's stdout stays free for whatever its imports print.
         records_read, records_write = os.pipe()
         replies_read, replies_write = os.pipe()
@@ -166,6 +205,12 @@ class BackgroundWriter(FinishesOnExit):
             ],
             pass_fds=(records_read, replies_write),
             stdin=subprocess.DEVNULL,
+            # A session of its own: the terminal's Ctrl-C and hang-up, and a signal
+            # sent to the command's process group, reach the recording process alone,
+            # even while the writer is still starting (before it could ignore them).
+            # Ending the log is the recording process's call; if that process dies,
+            # the writer sees its pipe close and finishes the file itself.
+            start_new_session=True,
         )
         os.close(records_read)
         os.close(replies_write)
@@ -190,7 +235,8 @@ class BackgroundWriter(FinishesOnExit):
         self._close()
         return WriteError(
             f"{why}; {self._path} holds what was written before, cut short "
-            "(pipemap info and replay read it)"
+            "(pipemap info and replay read it; a log of no messages if the writer "
+            "had written nothing)"
         )
 
     def _receive(self) -> tuple[str, Any]:

@@ -38,6 +38,7 @@ from mcap.opcode import Opcode
 from pipemap.recorder.filebytes import ByteSource, FileBytes, crc32_between, unpack_at
 from pipemap.recorder.mcaprecords import (
     CHUNK,
+    FOOTER_RECORD,
     HEAD,
     KNOWN_OPCODES,
     MAGIC,
@@ -123,6 +124,9 @@ class _Walker:
         self.chunks_seen = 0
         self.pending: Lost | None = None  # the last lost chunk, for its message indexes
         self.data_end_seen = False
+        self.data_end_at = 0
+        #: What is wrong with the summary, footer, closing magic or what follows it.
+        self.tail = ""
 
     # -- the header and the summary -------------------------------------------------
 
@@ -134,6 +138,7 @@ class _Walker:
         """Read the footer and the summary; returns what is wrong with them ("" if
         nothing, or if the file does not end in the magic: then it is cut short)."""
         summary, problem = read_summary(self.data, data_start)
+        self.tail = problem
         if summary is None:
             return problem
         self.summary = summary
@@ -331,6 +336,7 @@ class _Walker:
                     yield messages
                 if opcode in (Opcode.DATA_END, Opcode.FOOTER):
                     self.data_end_seen = True
+                    self.data_end_at = position
                     return
                 position = end
                 continue
@@ -370,15 +376,32 @@ class _Walker:
     def finish(self) -> None:
         """Say how the file ends, if it stops short of its closing magic."""
         data, out = self.data, self.out
-        if out.truncated or data[-len(MAGIC) :] == MAGIC:
+        if out.truncated or self.tail or data[-len(MAGIC) :] == MAGIC:
             return
         missing = missing_magic(data)
-        if missing:
+        ends = self._closing_magic_end() if self.data_end_seen and not missing else 0
+        if ends:
+            # Longer than the log, not shorter: another program appended to it.
+            self.tail = f"{len(data) - ends} byte(s) after the log's end (its closing magic "
+            self.tail += f"ends at byte {ends})"
+        elif missing:
             out.truncated = f"file ends {missing} byte(s) short of its closing magic"
         elif self.data_end_seen:
             out.truncated = f"file ends at byte {len(data)}, in its summary, after every message"
         else:
             out.truncated = f"file ends at byte {len(data)}, before the end of its data"
+
+    def _closing_magic_end(self) -> int:
+        """Where a footer and closing magic after the data end stop (0 if none does):
+        the summary is small, so the search is short."""
+        data = self.data
+        found = data.find(MAGIC, self.data_end_at)
+        while found != -1:
+            at = found - FOOTER_RECORD
+            if at >= self.data_end_at and data[at] == Opcode.FOOTER:
+                return found + len(MAGIC)
+            found = data.find(MAGIC, found + 1)
+        return 0
 
 
 class Walk:
@@ -421,6 +444,7 @@ class Walk:
     def _chunks(self) -> Iterator[list[Message]]:
         yield from self._walker.walk(self._data_start)
         self._walker.finish()
+        self.tail = self._walker.tail
         self.done = True
 
     def __iter__(self) -> Iterator[Message]:

@@ -91,9 +91,16 @@ def read_summary(data: ByteSource, data_start: int) -> tuple[Summary | None, str
     """The footer and the summary, and what is wrong with them ("" if nothing, or if
     the file does not end in the magic: then it is cut short, and has no summary)."""
     size = len(data)
-    if size < data_start + FOOTER_RECORD + len(MAGIC) or data[-len(MAGIC) :] != MAGIC:
+    if size < data_start + FOOTER_RECORD + len(MAGIC):
         return None, ""
     at = size - len(MAGIC) - FOOTER_RECORD
+    if data[-len(MAGIC) :] != MAGIC:
+        # A footer where it belongs, then eight bytes that are not the magic: the file
+        # is whole to its last byte and its closing magic is damaged (not cut short).
+        opcode, length = unpack_at(HEAD, data, at)
+        if opcode == Opcode.FOOTER and length == FOOTER.size and not missing_magic(data):
+            return None, "the closing magic is damaged (the file's last 8 bytes)"
+        return None, ""
     footer = data[at : at + FOOTER_RECORD]
     opcode, length = HEAD.unpack_from(footer, 0)
     if opcode != Opcode.FOOTER or length != FOOTER.size:

@@ -30,6 +30,7 @@ import contextlib
 import enum
 import gc
 import itertools
+import stat
 import weakref
 from collections import Counter
 from collections.abc import Callable, Generator, Iterator
@@ -370,6 +371,22 @@ def _keep_all(_topic: str) -> bool:
 
 
 def _open(path: Path) -> BinaryIO:
+    # Looked at before it is opened: opening a FIFO blocks until a writer comes, and
+    # a pipe or a device has no length to read a log's summary from.
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise LogFormatError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise _unreadable(path, exc) from None
+    if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
+        kind = (
+            "a pipe" if stat.S_ISFIFO(mode) else "a socket" if stat.S_ISSOCK(mode) else "a device"
+        )
+        raise LogFormatError(
+            f"{path}: is {kind}, not a log file; pipemap reads a log from a file "
+            "(save the stream to a file first)"
+        )
     try:
         return path.open("rb", buffering=0)
     except FileNotFoundError:

@@ -24,6 +24,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from google.protobuf.message import DecodeError
+
 from pipemap.localizer import PORT_TOLERANCE_RAD, TopoMap, wrap_angle_rad
 from pipemap.recorder import Topic
 from pipemap.recorder.schemas import SceneUpdate
@@ -85,12 +87,19 @@ class TrueNetwork:
         )
 
 
-def true_network(source: MessageSource) -> TrueNetwork | None:
-    """The network of the log's ``/truth/network``, or ``None`` if it has none."""
+def true_network(source: MessageSource, problems: list[str] | None = None) -> TrueNetwork | None:
+    """The network of the log's ``/truth/network``, or ``None`` if it has none. What
+    makes a network message unusable (it does not decode, it holds no node) is added
+    to ``problems``, a line each, so that a score can say what it could not score."""
     for m in source.truth():
         if m.topic != Topic.NETWORK:
             continue
-        scene = SceneUpdate.FromString(m.data)
+        try:
+            scene = SceneUpdate.FromString(m.data)
+        except DecodeError:
+            if problems is not None:
+                problems.append(f"{Topic.NETWORK} does not decode")
+            continue
         positions: dict[str, tuple[float, float]] = {}
         pipes: set[tuple[str, str]] = set()
         deposits: list[tuple[tuple[str, str], str]] = []
@@ -108,6 +117,8 @@ def true_network(source: MessageSource) -> TrueNetwork | None:
                 deposits.append(((min(a, b), max(a, b)), meta.get("kind", "")))
         if positions:
             return TrueNetwork(positions, frozenset(pipes), tuple(deposits))
+        if problems is not None:
+            problems.append(f"{Topic.NETWORK} holds no node")
     return None
 
 

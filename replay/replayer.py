@@ -28,6 +28,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from pipemap.errors import LogFormatError
 from pipemap.localizer import (
     Decision,
     FastConfig,
@@ -284,7 +285,7 @@ class _Replay:
         if self.localizer is None:
             # A lamp-lit camera's sweeps are normalised (unless the caller says otherwise);
             # the run's settings open the log, before its first sweep.
-            self.metadata = self.source.run_metadata()
+            self.metadata = _run_settings(self.source)
             lit = lamp_strength(self.metadata) > 0.0
             self.localizer = Localizer(self.config.for_camera(lit), clock=time.perf_counter)
         localizer = self.localizer
@@ -354,7 +355,7 @@ class _Replay:
             warnings.append(f"{name}: no complete sweep of a visit in this log; an empty map")
         localizer = self.localizer
         if localizer is None:
-            lit = lamp_strength(self.source.run_metadata()) > 0.0
+            lit = lamp_strength(_run_settings(self.source)) > 0.0
             localizer = Localizer(self.config.for_camera(lit))
         return ReplayResult(
             visits=self.decided,
@@ -372,6 +373,20 @@ class _Replay:
             localizer=localizer,
             illumination=localizer.config.illumination if localizer.config.lamp else None,
         )
+
+
+def _run_settings(source: MessageSource) -> dict[str, str]:
+    """The run's ``pipemap.run`` settings, read before the first sweep (the record
+    opens the log). Absent, its record was damaged (the reader accepts such a log for
+    ``info``): the settings, the camera's lamp among them, are not guessed."""
+    run = source.run_metadata()
+    if not run:
+        raise LogFormatError(
+            f"{source.name}: its pipemap.run record is damaged: the run's settings are "
+            "lost, so it cannot be replayed as it was recorded (pipemap info lists what "
+            "the log still holds)"
+        )
+    return run
 
 
 def replay(

@@ -160,6 +160,8 @@ class ScoreReport:
     #: Blocked pipes, marked and true; ``None`` when the truth has no deposit and the
     #: map marks nothing blocked.
     blocked: BlockedPipes | None = None
+    #: What of the truth could not be read (a line each); not part of the document.
+    truth_notes: tuple[str, ...] = ()
 
     @property
     def map_status(self) -> str:
@@ -265,16 +267,23 @@ def _summary(values: list[float]) -> dict[str, Any]:
     return {"mean": _round(statistics.fmean(values)), "std": _round(std), "n": len(values)}
 
 
-def true_sweeps(source: MessageSource) -> dict[int, TrueSweep]:
-    """The truth of every sweep of the log (``/truth/sweep``), by sweep id."""
+def true_sweeps(source: MessageSource, problems: list[str] | None = None) -> dict[int, TrueSweep]:
+    """The truth of every sweep of the log (``/truth/sweep``), by sweep id; how many
+    do not decode is added to ``problems``."""
     truths = {}
+    lost = 0
     for m in source.truth():
         if m.topic == Topic.TRUE_SWEEP:
             try:
                 t = TrueSweep.FromString(m.data)
             except DecodeError:
-                continue  # unreadable: that sweep's truth is lost, as if damaged
+                lost += 1  # unreadable: that sweep's truth is lost, as if damaged
+                continue
             truths[t.sweep_id] = t
+    if lost and problems is not None:
+        problems.append(
+            f"{lost} {Topic.TRUE_SWEEP} message(s) do not decode: their sweeps' truth is lost"
+        )
     if not truths:
         raise LogFormatError(f"{source.name}: no ground truth (/truth/sweep) to score against")
     return truths
@@ -380,7 +389,8 @@ def score_replay(
 ) -> ScoreReport:
     """Compare a replay's decisions with the log's truth; ``fast`` is the matcher's
     configuration for the pair statistics (the replay's own, by default)."""
-    truths = true_sweeps(source) if result.visits else {}
+    truth_notes: list[str] = []
+    truths = true_sweeps(source, truth_notes) if result.visits else {}
     created: dict[int, tuple[str, float]] = {}  # map node -> (true label, true heading)
     seen: set[str] = set()
     visits: list[VisitScore] = []
@@ -390,9 +400,17 @@ def score_replay(
         if index in result.breaks:
             breaks.append(len(visits))
         truth = truths.get(v.sweep_id)
-        if truth is None:
-            if source.integrity is Integrity.OK:
+        unknown = v.decision.known and v.decision.node not in created
+        if truth is None or unknown:
+            if source.integrity is Integrity.OK and not truth_notes and truth is None:
                 raise LogFormatError(f"{source.name}: no ground truth for sweep {v.sweep_id}")
+            if unknown and truth is not None:
+                result.warnings.append(
+                    f"{source.name}: visit {visit_label(v.visit_id)} revisits a junction "
+                    "whose first visit is not scored; it is not scored either"
+                )
+                breaks.append(len(visits))
+                continue
             # Its truth was in a damaged part: the visit cannot be scored.
             result.warnings.append(
                 f"{source.name}: the truth of sweep {v.sweep_id} (visit {v.visit_id}) is "
@@ -438,7 +456,9 @@ def score_replay(
     predicted = [v.predicted_node for v in visits]
     true = [v.true_node for v in visits]
     mapped = bool(visits) and _map_correct(predicted, true, set(breaks))
-    network = true_network(source)
+    network = true_network(source, truth_notes)
+    if network is None and truth_notes and Topic.NETWORK in truth_notes[-1]:
+        truth_notes[-1] += ": coverage, ports and blocked pipes are not scored"
     coverage = None if network is None else coverage_of(network, true)
     ports = None
     if network is not None:
@@ -464,6 +484,7 @@ def score_replay(
         ports_correct=ports,
         mapped_part_correct=mapped,
         blocked=blocked,
+        truth_notes=tuple(truth_notes),
     )
 
 

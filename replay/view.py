@@ -21,14 +21,13 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
 import uuid
 from collections import defaultdict
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from pipemap.errors import InputError, ViewerError
+from pipemap.errors import InputError, ViewerError, WriteError
 from pipemap.localizer import TopoMap
 from pipemap.recorder.reader import LogMessage
 from pipemap.recorder.topics import ROBOT_PREFIX
@@ -36,6 +35,7 @@ from pipemap.replay.replayer import ReplayResult, VisitDecision, visit_label
 from pipemap.replay.source import MessageSource
 from pipemap.replay.view_blueprint import view_blueprint
 from pipemap.replay.view_topics import Carried, RobotGeometry, log_robot, log_truth, set_time
+from pipemap.wholefile import partial_path
 
 if TYPE_CHECKING:
     import rerun as rr
@@ -221,21 +221,27 @@ def save_view(source: MessageSource, result: Replayed, path: Path | str) -> None
     """Write the view of ``source`` and ``result`` to the ``.rrd`` file ``path``.
 
     The file appears whole or not at all: it is written beside ``path`` under a
-    temporary name and renamed when complete. An existing ``path`` is replaced.
+    temporary name and renamed when complete (:mod:`pipemap.wholefile`). An existing
+    ``path`` is replaced. A write that fails in rerun's file writer (a full disk) is
+    one :class:`WriteError`.
     """
     path = Path(path)
     if not path.parent.is_dir():
         raise InputError(f"{path}: folder {path.parent} does not exist")
-    partial = path.with_name(f".{path.name}.partial")
     rec = _recording(source)
-    try:
+    with partial_path(path) as partial:
         rec.save(partial, default_blueprint=view_blueprint())
-        log_view(rec, source, result)
-        rec.flush()
+        try:
+            log_view(rec, source, result)
+            rec.flush()
+        except RuntimeError as exc:  # rerun's file writer stopped: it could not write
+            # Not disconnected: that would flush the dead writer again, and rerun
+            # would print its own error line besides this one.
+            raise WriteError(f"{path}: cannot write (rerun: {exc})") from None
+        except BaseException:
+            rec.disconnect()
+            raise
         rec.disconnect()
-        os.replace(partial, path)
-    finally:
-        partial.unlink(missing_ok=True)
 
 
 def spawn_view(source: MessageSource, result: Replayed) -> None:

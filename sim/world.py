@@ -27,9 +27,11 @@ and so the range rays, keeps every body.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
+import shutil
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -39,7 +41,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from pipemap.errors import SimError
+from pipemap.errors import SimError, WriteError
 from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
 from pipemap.sim.network import Network
 from pipemap.sim.obstacles import Obstacle
@@ -99,6 +101,38 @@ class CameraSpec:
             raise SimError(f"lamp strength must be in [0, 1], got {self.lamp_strength}")
 
 
+#: Start of the name of each world's folder of texture files (in the temporary folder).
+_TEXTURE_PREFIX = "pipemap-world-"
+
+
+def _texture_folder() -> tempfile.TemporaryDirectory[str]:
+    """A new folder for a world's texture files, named after this process; the folders
+    of processes that no longer run (killed while building a world) are removed first."""
+    root = Path(tempfile.gettempdir())
+    with contextlib.suppress(OSError):
+        for stale in root.glob(f"{_TEXTURE_PREFIX}*-*"):
+            pid = stale.name[len(_TEXTURE_PREFIX) :].split("-", 1)[0]
+            if pid.isdigit() and not _running(int(pid)):
+                shutil.rmtree(stale, ignore_errors=True)
+    try:
+        return tempfile.TemporaryDirectory(prefix=f"{_TEXTURE_PREFIX}{os.getpid()}-")
+    except OSError as exc:
+        raise WriteError(
+            f"{root}: cannot make a folder for the world's texture files ({exc.strerror or exc})"
+        ) from None
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` exists (another user's counts as existing)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
 class World:
     """A pipe network in its own PyBullet client. Use as a context manager."""
 
@@ -118,7 +152,7 @@ class World:
         #: Hide, for each image, the bodies no line of sight can reach (same image).
         self.cull = cull
         self._client = pybullet.connect(pybullet.DIRECT)
-        self._tmp = tempfile.TemporaryDirectory(prefix="pipemap-world-")
+        self._tmp = _texture_folder()
         self.triangle_count = 0
         self._node_bodies: dict[str, list[int]] = {n.label: [] for n in network.nodes}
         self._pipe_bodies: dict[tuple[str, str], list[int]] = {}
@@ -154,7 +188,15 @@ class World:
 
     def _texture(self, name: str, image: np.ndarray) -> int:
         path = Path(self._tmp.name) / f"{name}.png"
-        cv2.imwrite(str(path), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+        # Encoded in memory and written by Python: a full disk is one line (exit 3),
+        # never libpng's complaint and a texture PyBullet cannot load.
+        _, png = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+        try:
+            path.write_bytes(png.tobytes())
+        except OSError as exc:
+            raise WriteError(
+                f"{path.parent}: cannot write the world's texture files ({exc.strerror or exc})"
+            ) from None
         return int(pybullet.loadTexture(str(path), physicsClientId=self._client))
 
     def _add(self, mesh: Mesh, texture_id: int) -> int:

@@ -46,19 +46,35 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
     "pipemap.allocator": (),
     "pipemap": (),  # the root __init__: nothing of the project, so importing it is free
     "pipemap.localizer": ("pipemap.localizer", "pipemap.errors"),
-    "pipemap.sim": ("pipemap.sim", "pipemap.errors"),
+    "pipemap.sim": ("pipemap.sim", "pipemap.errors", "pipemap.wholefile"),
     "pipemap.recorder": (
         "pipemap.recorder",
         "pipemap.pngcheck",
+        "pipemap.wholefile",
         "pipemap.sim",
         "pipemap.localizer",
         "pipemap.errors",
     ),
-    "pipemap.replay": ("pipemap.replay", "pipemap.recorder", "pipemap.localizer", "pipemap.errors"),
+    "pipemap.replay": (
+        "pipemap.replay",
+        "pipemap.recorder",
+        "pipemap.localizer",
+        "pipemap.errors",
+        "pipemap.wholefile",
+    ),
     # Image-set folders in the paper's layout: files in, localizer image sets out.
-    "pipemap.imagesets": ("pipemap.localizer", "pipemap.errors", "pipemap.pngcheck"),
+    "pipemap.imagesets": (
+        "pipemap.localizer",
+        "pipemap.errors",
+        "pipemap.pngcheck",
+        "pipemap.wholefile",
+    ),
     # Byte-level checks of image formats, shared by the log and image-set readers.
     "pipemap.pngcheck": (),
+    # Output files written under a temporary name and renamed when whole.
+    "pipemap.wholefile": ("pipemap.errors",),
+    # Stop signals raised as Ctrl-C is (the command line, a batch's driver).
+    "pipemap.stops": ("pipemap.errors",),
     # The Python API: what the CLI calls, and what a script or notebook imports.
     "pipemap.api": (
         "pipemap.api",
@@ -81,6 +97,8 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.localizer",
         "pipemap.errors",
         "pipemap.allocator",
+        "pipemap.wholefile",
+        "pipemap.stops",
         "pipemap.__version__",
     ),
     "pipemap.cli": ("pipemap",),

@@ -233,3 +233,68 @@ def test_a_damaged_image_set_gets_a_result_or_one_line(image_sets: list[Path]) -
         case()
     finally:
         target.write_bytes(original)
+
+
+# -- valid MCAP, broken payloads ---------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def slim_log(recorded_run: Path) -> tuple[dict[str, str], dict[str, str], list[object]]:
+    """The recorded run's metadata and the messages a score reads (a tenth of them),
+    so that a log can be written anew for each case in a fraction of a second."""
+    from pipemap.recorder import METADATA_RESULT, METADATA_RUN, read_log
+    from pipemap.replay import SCORE_TOPICS
+
+    contents = read_log(recorded_run)
+    kept = [m for m in contents.messages if m.topic in SCORE_TOPICS]
+    return contents.metadata[METADATA_RUN], contents.metadata[METADATA_RESULT], kept
+
+
+@st.composite
+def broken_payloads(draw: st.DrawFn, messages: list[object]) -> dict[int, bytes]:
+    """New payloads for one to three messages of one topic: random bytes, a payload
+    cut short, a byte flipped, or nothing."""
+    topics = sorted({m.topic for m in messages})  # type: ignore[attr-defined]
+    topic = draw(st.sampled_from(topics))
+    indexes = [i for i, m in enumerate(messages) if m.topic == topic]  # type: ignore[attr-defined]
+    changed = {}
+    for index in draw(st.lists(st.sampled_from(indexes), min_size=1, max_size=3, unique=True)):
+        data = messages[index].data  # type: ignore[attr-defined]
+        kind = draw(st.sampled_from(["garbage", "cut", "flip", "empty"]))
+        if kind == "garbage":
+            changed[index] = draw(st.binary(min_size=1, max_size=64))
+        elif kind == "cut" and len(data) > 1:
+            changed[index] = data[: draw(st.integers(1, len(data) - 1))]
+        elif kind == "flip" and data:
+            flipped = bytearray(data)
+            flipped[draw(st.integers(0, len(data) - 1))] ^= draw(st.integers(1, 255))
+            changed[index] = bytes(flipped)
+        else:
+            changed[index] = b""
+    return changed
+
+
+def test_a_log_with_broken_payloads_gets_a_result_or_one_line(
+    slim_log: tuple[dict[str, str], dict[str, str], list[object]], scratch: Path
+) -> None:
+    """Structure-aware: every record of the log is whole MCAP written by pipemap's own
+    writer, and one topic's payloads are broken (every topic the replay and the score
+    read, /truth included); fewer cases than the byte-level fuzz, each a new log."""
+    from pipemap.recorder import LogWriter
+
+    run_metadata, result_metadata, messages = slim_log
+
+    @settings(_FUZZ, max_examples=max(1, _EXAMPLES // 2))
+    @given(changed=broken_payloads(messages), command=st.sampled_from(LOG_COMMANDS[:4]))
+    def case(changed: dict[int, bytes], command: tuple[str, ...]) -> None:
+        log = scratch / "payloads.mcap"
+        with log.open("wb") as f, LogWriter(f, run_metadata) as writer:
+            for i, m in enumerate(messages):
+                data = changed.get(i, m.data)  # type: ignore[attr-defined]
+                writer.write_serialized(m.topic, m.log_time_ns, data)  # type: ignore[attr-defined]
+            writer.finish(result_metadata)
+        argv = (command[0], str(log), *command[1:])
+        status, _, stderr = run(*argv)
+        check(status, stderr, argv)
+
+    case()

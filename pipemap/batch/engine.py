@@ -19,7 +19,6 @@ import ipaddress
 import logging
 import os
 import re
-import shutil
 import socket
 import threading
 import time
@@ -31,11 +30,17 @@ from typing import Any
 from pipemap import __version__
 from pipemap.allocator import keep_freed_memory
 from pipemap.batch.folder import check_out, finished_results
-from pipemap.batch.results import RESULT_FILES, result_row, write_recording, write_table
+from pipemap.batch.results import (
+    RESULT_FILES,
+    prepare_folder,
+    result_row,
+    write_recording,
+    write_table,
+)
 from pipemap.batch.run import run_recording
 from pipemap.batch.signals import held_signals, terminate_as_interrupt
 from pipemap.batch.spec import BatchSpec, RunPoint
-from pipemap.errors import InputError
+from pipemap.errors import InputError, Interrupted
 
 __all__ = [
     "BatchEvent",
@@ -113,6 +118,7 @@ class BatchSummary:
     done: int = 0
     failed: int = 0
     interrupted: bool = False
+    stop_signal: int = 0  #: the number of the signal that stopped it (0: Ctrl-C)
     workers: int = 0
     wall_s: float = 0.0
     #: CPU seconds the finished recordings took on their workers.
@@ -330,19 +336,6 @@ def _reason(exc: BaseException) -> str:
 Task = Callable[..., Mapping[str, Any]]
 
 
-def _prepare_folder(plan: BatchPlan) -> None:
-    out = plan.out
-    if plan.options.force and out.is_dir():
-        for name in (*BATCH_ENTRIES, *plan.options.extra_entries):
-            entry = out / name
-            if entry.is_dir():
-                shutil.rmtree(entry)
-            elif entry.exists():
-                entry.unlink()
-    (out / "runs").mkdir(parents=True, exist_ok=True)
-    (out / "spec.toml").write_text(plan.spec.text)
-
-
 def _cost(points: tuple[RunPoint, ...]) -> float:
     """A rough guess of a recording's work, to hand out the long ones first (so that
     the batch does not end waiting on one long run): the autonomous robot drives
@@ -405,7 +398,8 @@ def run_batch(
     if plan.options.resume and out.is_dir():
         for run_id, doc in finished_results(spec, out).items():
             rows[run_id] = result_row(out, doc)
-    _prepare_folder(plan)
+    forced = (*BATCH_ENTRIES, *plan.options.extra_entries) if plan.options.force else ()
+    prepare_folder(out, spec.text, forced)
     written = [0.0]
 
     def table(now: bool = False) -> list[dict[str, Any]]:
@@ -467,7 +461,8 @@ def run_batch(
                         finished(points, None, _reason(exc))
                     else:
                         finished(points, outcome, "")
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
+            summary.stop_signal = exc.signum if isinstance(exc, Interrupted) else 0
             # Not ray.cancel: cancelling a task as it completes can abort this process
             # (a Ray core check, seen with Ray 2.60). Shutting down ends the running
             # tasks (a cluster ends a driver's tasks when the driver leaves).

@@ -30,6 +30,7 @@ from pipemap.batch.experiment import (
 )
 from pipemap.batch.plots import DIFFERENT, SAME, Box, box_plot
 from pipemap.batch.spec import RULES
+from pipemap.wholefile import write_whole
 
 __all__ = ["PAPER", "experiment_document", "write_experiment"]
 
@@ -342,9 +343,9 @@ def write_experiment(
     """Write the experiment's files into ``folder``; returns the JSON document."""
     doc = experiment_document(result, wall_s, version)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "experiment.json").write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
-    (folder / "experiment.md").write_text(_markdown(doc))
+    write_whole(folder / "experiment.json", json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    write_whole(folder / "experiment.md", _markdown(doc))
     figure7, figure6 = _figures(result)
-    cv2.imwrite(str(folder / "figure7_similarity.png"), figure7)
-    cv2.imwrite(str(folder / "figure6_images.png"), figure6)
+    write_whole(folder / "figure7_similarity.png", cv2.imencode(".png", figure7)[1].tobytes())
+    write_whole(folder / "figure6_images.png", cv2.imencode(".png", figure6)[1].tobytes())
     return doc

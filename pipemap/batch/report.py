@@ -21,6 +21,7 @@ from typing import Any
 from pipemap.batch.results import read_result, read_table
 from pipemap.batch.spec import GRID_KEYS, RULES
 from pipemap.errors import InputError
+from pipemap.wholefile import write_whole
 
 __all__ = ["METRICS", "REPORT_FILES", "group_runs", "report_document", "write_report"]
 
@@ -267,8 +268,8 @@ def write_report(folder: Path, by: Sequence[str] | None = None) -> list[Path]:
     doc = report_document(folder, by)
     figure7, table2 = _figures(folder, doc)
     paths = [folder / name for name in REPORT_FILES]
-    paths[0].write_text(_markdown(doc))
-    paths[1].write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
-    cv2.imwrite(str(paths[2]), figure7)
-    cv2.imwrite(str(paths[3]), table2)
+    write_whole(paths[0], _markdown(doc))
+    write_whole(paths[1], json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    write_whole(paths[2], cv2.imencode(".png", figure7)[1].tobytes())
+    write_whole(paths[3], cv2.imencode(".png", table2)[1].tobytes())
     return paths

@@ -27,6 +27,8 @@ from typing import Any
 from pipemap.batch.run import LOG_NAME
 from pipemap.batch.signals import held_signals
 from pipemap.batch.spec import GRID_KEYS, RULES, BatchSpec, RunPoint
+from pipemap.errors import WriteError
+from pipemap.wholefile import write_whole
 
 __all__ = [
     "COLUMNS",
@@ -34,6 +36,7 @@ __all__ = [
     "SCORE_COLUMNS",
     "VOLATILE_COLUMNS",
     "flatten_score",
+    "prepare_folder",
     "read_result",
     "read_table",
     "result_row",
@@ -159,17 +162,21 @@ def _replace_folder(out: Path, run_id: str, files: Mapping[str, str | bytes | Pa
     if partial.exists():
         shutil.rmtree(partial)
     partial.mkdir(parents=True)
-    for name, content in files.items():
-        target = partial / name
-        if isinstance(content, Path):
-            try:
-                os.link(content, target)
-            except OSError:
-                shutil.copyfile(content, target)
-        elif isinstance(content, bytes):
-            target.write_bytes(content)
-        else:
-            target.write_text(content)
+    try:
+        for name, content in files.items():
+            target = partial / name
+            if isinstance(content, Path):
+                try:
+                    os.link(content, target)
+                except OSError:
+                    shutil.copyfile(content, target)
+            elif isinstance(content, bytes):
+                target.write_bytes(content)
+            else:
+                target.write_text(content)
+    except OSError as exc:  # a full disk: no half-written run folder stays
+        shutil.rmtree(partial, ignore_errors=True)
+        raise WriteError(f"{final}: cannot write ({exc.strerror or exc})") from None
     if final.exists():
         shutil.rmtree(final)
     os.replace(partial, final)
@@ -295,10 +302,21 @@ def _csv_value(value: Any) -> str:
     return str(value)
 
 
+def prepare_folder(out: Path, spec_text: str, replaced: Iterable[str]) -> None:
+    """Make the batch folder ``out`` with its ``runs/`` and its SPEC's text, after
+    removing the ``replaced`` entries of an earlier batch (``--force``)."""
+    for name in replaced:
+        entry = out / name
+        if entry.is_dir():
+            shutil.rmtree(entry)
+        elif entry.exists():
+            entry.unlink()
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    write_whole(out / "spec.toml", spec_text)
+
+
 def _atomic_write(path: Path, text: str) -> None:
-    partial = path.with_name(f".{path.name}.partial")
-    partial.write_text(text)
-    os.replace(partial, path)
+    write_whole(path, text)
 
 
 def write_table(

@@ -1,4 +1,4 @@
-"""Ctrl-C and SIGTERM in a batch's driver: both stop it the same way, and neither
+"""Ctrl-C, SIGTERM and SIGHUP in a batch's driver: both stop it the same way, and neither
 lands between the runs of one recording while they are written.
 
 A recording's runs (one per rule) share its log: the first run's folder holds it,
@@ -15,32 +15,22 @@ import signal
 import threading
 from collections.abc import Iterator
 
+from pipemap.stops import stopping_on
+
 __all__ = ["held_signals", "terminate_as_interrupt"]
 
 #: The signals that stop a batch.
-_STOPS = (signal.SIGINT, signal.SIGTERM)
+_STOPS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
-@contextlib.contextmanager
-def terminate_as_interrupt() -> Iterator[None]:
-    """SIGTERM (``kill``, a scheduler ending the job) stops the batch as Ctrl-C does,
-    and later ones are ignored until the table is written. Without this, the handler
-    ``ray.init`` installs exits at once and leaves the table behind the finished
-    runs. Only the main thread may set a handler; elsewhere SIGTERM is left alone."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.getsignal(signal.SIGTERM)
-
-    def stop(signum: int, frame: object) -> None:
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGTERM, stop)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+def terminate_as_interrupt() -> contextlib.AbstractContextManager[None]:
+    """SIGTERM (``kill``, a scheduler ending the job) and SIGHUP (the terminal closed)
+    stop the batch as Ctrl-C does, as :class:`pipemap.errors.Interrupted` naming the
+    signal, and later ones are ignored until the table is written. Without this, the
+    handler ``ray.init`` installs exits at once and leaves the table behind the
+    finished runs. Only the main thread may set a handler; elsewhere they are left
+    alone."""
+    return stopping_on((signal.SIGTERM, signal.SIGHUP))
 
 
 @contextlib.contextmanager

@@ -3,9 +3,10 @@
 Library code raises :class:`pipemap.errors.PipemapError` for bad input; here alone
 it is caught, printed as one line naming what is wrong (a line per mistake when a
 SPEC has several), and turned into exit status 2 (3 for an output that could not be
-written whole: a full disk, a killed writer). Any other exception is a bug and keeps
-its traceback. Commands import their heavy dependencies lazily so that ``pipemap
---help`` is instant.
+written whole: a full disk, a killed writer). Stop signals and a standard output
+that cannot be written end every command the same way (:mod:`pipemap.cli.exits`).
+Any other exception is a bug and keeps its traceback. Commands import their heavy
+dependencies lazily so that ``pipemap --help`` is instant.
 """
 
 from __future__ import annotations
@@ -20,6 +21,14 @@ from collections.abc import Callable, Sequence
 from typing import TextIO
 
 from pipemap.allocator import keep_freed_memory
+from pipemap.cli.exits import (
+    PIPE_CLOSED,
+    OutputClosed,
+    flush_standard_output,
+    guarded_standard_output,
+    stop_signals,
+    stopped_status,
+)
 from pipemap.cli.localizer_options import apply_presets
 from pipemap.cli.parser import build_parser
 from pipemap.errors import PipemapError, WriteError
@@ -110,7 +119,7 @@ def _run(argv: Sequence[str] | None) -> int:
     module, function = COMMANDS[args.command].split(":")
     runner: Runner = getattr(importlib.import_module(module), function)
     try:
-        return runner(args, sys.stdout, sys.stderr)
+        return runner(args, sys.stdout, sys.stderr)  # sys.stdout: guarded by main
     except ModuleNotFoundError as exc:
         top = (exc.name or "").split(".")[0]
         if top in EXTRAS:  # a path of the command that NEEDS does not know of
@@ -148,19 +157,27 @@ def one_blas_thread() -> bool:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``pipemap`` console script; returns the exit status."""
     one_blas_thread()
-    try:
-        return _run(argv)
-    except WriteError as exc:
-        print(f"pipemap: error: {exc}", file=sys.stderr)
-        return WRITE_FAILED
-    except PipemapError as exc:
-        # One line per mistake (a SPEC may have several), each with the prefix.
-        for line in str(exc).splitlines() or [type(exc).__name__]:
-            print(f"pipemap: error: {line}", file=sys.stderr)
-        return BAD_INPUT
-    except KeyboardInterrupt:
-        print("pipemap: interrupted", file=sys.stderr)
-        return INTERRUPTED
+    with guarded_standard_output(), stop_signals():
+        try:
+            try:
+                return _run(argv)
+            finally:
+                # Here, not on the interpreter's way out: a failure is one line.
+                flush_standard_output()
+        except OutputClosed:
+            return PIPE_CLOSED  # the reader has gone (| head): nothing to say, as coreutils
+        except WriteError as exc:
+            print(f"pipemap: error: {exc}", file=sys.stderr)
+            return WRITE_FAILED
+        except PipemapError as exc:
+            # One line per mistake (a SPEC may have several), each with the prefix.
+            for line in str(exc).splitlines() or [type(exc).__name__]:
+                print(f"pipemap: error: {line}", file=sys.stderr)
+            return BAD_INPUT
+        except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP (pipemap.cli.exits)
+            status, name = stopped_status(exc)
+            print(f"pipemap: interrupted ({name})", file=sys.stderr)
+            return status
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ run failed (after its retry), 0 otherwise.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 from typing import Any, TextIO
@@ -109,12 +110,13 @@ def run_batch_command(args: argparse.Namespace, out: TextIO, err: TextIO = sys.s
         f"{format_duration(summary.wall_s)}; results in {plan.out / 'results.csv'}\n"
     )
     if summary.interrupted:
+        name = signal.Signals(summary.stop_signal or signal.SIGINT).name
         err.write(
-            f"pipemap: interrupted: {summary.done} finished runs kept in {plan.out}; "
-            "--resume makes the rest\n"
+            f"pipemap: interrupted ({name}): {summary.done} finished runs kept in "
+            f"{plan.out}; --resume makes the rest\n"
         )
         out.write(line)
-        return 130
+        return 128 + (summary.stop_signal or signal.SIGINT)
     out.write(line)
     return 1 if summary.failed else 0
 

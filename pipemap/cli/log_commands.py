@@ -1,8 +1,8 @@
 """``pipemap record`` and ``pipemap info``: write a run's log, and describe one.
 
 ``record`` validates everything before it creates the file, refuses to overwrite
-without ``--force``, and on Ctrl-C (or SIGTERM) closes the log properly with what
-was recorded so far and exits 130 saying so. ``info`` reads a log whole, or up to
+without ``--force``, and on Ctrl-C (or SIGTERM, SIGHUP) closes the log properly with
+what was recorded so far and exits 130 (143, 129) saying so. ``info`` reads a log whole, or up to
 where it was cut or damaged, and says which.
 """
 
@@ -11,39 +11,18 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import signal
 import sys
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from types import FrameType
 from typing import Any, TextIO
 
 from pipemap import __version__
+from pipemap.cli.exits import stop_signals, stopped_status
 from pipemap.cli.run_settings import check_condition_flags, explore_policy
 from pipemap.cli.slow import SlowNotice, world_notice
 from pipemap.errors import InputError, ViewerError
 
 __all__ = ["run_info", "run_record"]
-
-
-def _interrupt_once() -> Callable[[], None]:
-    """Turn the first SIGINT or SIGTERM into KeyboardInterrupt and ignore the rest, so
-    that a second Ctrl-C cannot break the closing of the log. Returns a restorer."""
-    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-
-    def handler(signum: int, frame: FrameType | None) -> None:
-        for s in previous:
-            signal.signal(s, signal.SIG_IGN)
-        raise KeyboardInterrupt
-
-    for s in previous:
-        signal.signal(s, handler)
-
-    def restore() -> None:
-        for s, h in previous.items():
-            signal.signal(s, h)
-
-    return restore
 
 
 def _progress_printer(err: TextIO, notice: SlowNotice) -> Callable[[Any], None]:
@@ -89,6 +68,19 @@ def _conditions_note(simulator: Any) -> str:
         count = settings.get("count") if isinstance(settings, dict) else None
         note += f", {count} {noun}" if isinstance(count, int) and count > 0 else ""
     return note
+
+
+def _run_line(meta: dict[str, Any]) -> str:
+    """The ``run`` line of ``info``: the run's settings, or that they are lost."""
+    if "format_version" not in meta:
+        return "run        lost: its pipemap.run record is damaged; the settings are not known"
+    return (
+        f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
+        f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
+        f"explore {meta.get('explore', 'right-hand')}, "
+        f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images"
+        + _conditions_note(meta.get("simulator"))
+    )
 
 
 def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
@@ -145,17 +137,19 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         live = live_view(settings.metadata(network, __version__), args.threshold, args.connect)
     notice = world_notice(err, args.network, network)
     progress = _progress_printer(err, notice)
-    restore = _interrupt_once()
     try:
-        result = api.record(target, settings, args.force, progress, live)
-    except KeyboardInterrupt:
+        with stop_signals():
+            result = api.record(target, settings, args.force, progress, live)
+    except KeyboardInterrupt as exc:
         if err.isatty():
             err.write("\n")
-        err.write(f"pipemap: interrupted: {target} closed with everything recorded so far\n")
-        return 130
+        status, name = stopped_status(exc)
+        err.write(
+            f"pipemap: interrupted ({name}): {target} closed with everything recorded so far\n"
+        )
+        return status
     finally:
         notice.stop()
-        restore()
         shown = _close_live(live, err)
     if err.isatty():
         err.write("\n")
@@ -312,11 +306,7 @@ def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
         lines += [
             f"duration   {doc['duration_s']:.3f} s simulated",
             f"messages   {doc['messages']}",
-            f"run        network {meta.get('network', '?')}, start {meta.get('start', '?')}, "
-            f"seed {meta.get('seed', '?')}, condition {meta.get('condition', '?')}, "
-            f"explore {meta.get('explore', 'right-hand')}, "
-            f"{meta.get('resolution_px', '?')} px, {meta.get('images_per_sweep', '?')} images"
-            + _conditions_note(meta.get("simulator")),
+            _run_line(meta),
             f"sweeps     {doc['sweeps']} complete in {doc['visits']} node visits"
             + (f" ({len(skipped)} skipped by a replay)" if skipped else ""),
             f"result     {result.get('status', 'none recorded')}",

@@ -17,7 +17,8 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from pipemap.errors import InputError, WriteError
+from pipemap.errors import InputError
+from pipemap.wholefile import write_whole
 
 __all__ = ["output_file", "output_folder", "write_text"]
 
@@ -94,8 +95,6 @@ def output_folder(
 
 
 def write_text(target: Path, text: str) -> None:
-    """Write ``text`` to ``target``; a failure part-way is one line (exit status 3)."""
-    try:
-        target.write_text(text)
-    except OSError as exc:
-        raise WriteError(f"{target}: cannot write ({exc.strerror or exc})") from None
+    """Write ``text`` to ``target`` whole or not at all (:mod:`pipemap.wholefile`); a
+    failure part-way is one line (exit status 3) and leaves no part of it there."""
+    write_whole(target, text)

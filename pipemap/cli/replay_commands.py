@@ -23,6 +23,7 @@ from pipemap.cli.localizer_options import (
 )
 from pipemap.cli.outputs import output_file, output_folder, write_text
 from pipemap.errors import InputError, WriteError
+from pipemap.wholefile import partial_path
 
 __all__ = [
     "localizer_config",
@@ -125,7 +126,8 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         import networkx as nx  # 0.09 s to import: only for GraphML
 
         try:
-            nx.write_graphml(result.topomap.graph, graphml)
+            with partial_path(graphml) as partial:
+                nx.write_graphml(result.topomap.graph, partial)
         except OSError as exc:
             raise WriteError(f"{graphml}: cannot write ({exc.strerror or exc})") from None
     return 0
@@ -179,6 +181,8 @@ def _score_log(log: str, source: Any, config: Any, err: TextIO) -> Any:
     report_damage(log, source.contents, err)
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
+    for note in report.truth_notes:
+        err.write(f"pipemap: warning: {log}: {note}\n")
     return report
 
 

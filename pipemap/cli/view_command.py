@@ -18,9 +18,11 @@ come last. Each process reads the file as it goes, so neither holds the log (a
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import os
 import pickle
+import signal
 import socket
 import sys
 from collections.abc import Callable
@@ -180,6 +182,7 @@ class _Child:
         os.close(write_end)
         self._pipe = os.fdopen(read_end, "rb")
         self._done = False
+        self._answered = False
         self._result: ReplayResult | None = None
 
     @staticmethod
@@ -218,7 +221,9 @@ class _Child:
         if self._result is None:
             try:
                 payload = pickle.load(self._pipe)
+                self._answered = True
             except (EOFError, pickle.UnpicklingError):
+                self._answered = True  # the child ended already
                 self.close()
                 raise ViewerError("the replay process ended without a result") from None
             self.close()
@@ -228,10 +233,14 @@ class _Child:
         return self._result
 
     def close(self) -> None:
-        """Wait for the child to end (idempotent)."""
+        """Wait for the child to end (idempotent); a child whose result was not taken
+        (the view stopped: a signal, an error) is ended first, not waited for."""
         if not self._done:
             self._done = True
             self._pipe.close()
+            if not self._answered:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(self._pid, signal.SIGKILL)
             os.waitpid(self._pid, 0)
 
 

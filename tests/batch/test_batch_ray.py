@@ -131,7 +131,7 @@ def test_sigterm_stops_the_batch_as_ctrl_c_does_with_the_table_whole(
     status, stopped = _stopped_batch(
         _command(spec, out), out, lambda pid: os.kill(pid, signal.SIGTERM)
     )
-    assert status == 130, stopped
+    assert status == 143, stopped
     assert "interrupted" in stopped and "SIGTERM received" not in stopped, stopped
     assert "Traceback" not in stopped, stopped
     finished = {p.name for p in _finished_runs(out)}

@@ -225,7 +225,9 @@ def _start_long_recording(target: Path) -> subprocess.Popen[str]:
     # Wait until the first sweeps are on disk (each sweep's end is flushed).
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:
-        if target.exists() and target.stat().st_size > 20_000:
+        # The log reads from the start (a placeholder of no messages, then the run's
+        # log cut short): wait for a sweep's images in it.
+        if target.exists() and read_log(target).counts.get(Topic.IMAGE, 0) > 0:
             return process
         time.sleep(0.2)
     process.kill()
