@@ -308,7 +308,8 @@ class _PlacedRun:
                 self.sink.online.probes = _PlacedProbes(self.sink, visit, visit_id, self)
             else:
                 self.sink.online.probes = NoProbes()
-            self.emit_sweep(*visit.take_sweep(arrival), visit_id, None)
+            sweep, truth = visit.take_sweep(arrival)
+            self.emit_sweep(sweep, truth, visit_id, None)
             # As the autonomous robot: to the centre its range scan finds (where it can
             # turn clear of the walls), then the exit scan.
             recentre(m, m.xy_est.copy())
