@@ -22,7 +22,7 @@ def main(spec: str, first: int, stop: int) -> None:
         network = build_network(spec, seed=seed)
         with World(network, seed=seed, texture_px=32) as world:
             result = autonomous_run(world, CameraSpec(resolution_px=32), seed)
-        seen = {s.true_node for s in result.sweeps} - {"?"}
+        seen = {s.node for s in result.sweep_truths} - {"?"}
         missing = sorted(set(network.labels) - seen)
         complete += not missing
         print(

@@ -13,9 +13,10 @@ visit). In every other condition it cannot, and the decision records the probes 
 missing; a replay of the log then meets the same answer.
 
 In the placement conditions (``perfect``, ``noise``, ``active``, ``entrance``) the
-robot is put at each node by hand, as in the paper: there are no drive sensors,
-and log time advances by the camera's steps and by the time the robot would take
-to drive each pipe at its cruising speed.
+robot is carried along the tour and put down at each node by hand, as in the paper;
+there it sweeps, re-centres and scans for the exits with its own sensors, as the
+autonomous robot does, and its node events hold only what it measured (see
+:class:`_PlacedRun`). Ground truth reaches the log's ``/truth`` topics alone.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from pipemap.errors import InputError
 from pipemap.localizer import (
@@ -41,11 +44,15 @@ from pipemap.recorder.inline import InlineWriter, RecordWriter
 from pipemap.recorder.online import NoProbes, OnlineLocalizer, gray_set, make_policy
 from pipemap.recorder.settings import RecordSettings
 from pipemap.recorder.topics import Topic
-from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
-from pipemap.sim.episode import Condition, Episode, Sweep, Visit
+from pipemap.sim.controller import RunStatus, autonomous_run
+from pipemap.sim.episode import Condition, Episode, Pose, Sweep, SweepTruth, Visit
+from pipemap.sim.junction_actions import recentre, scan
+from pipemap.sim.motion import Motion
 from pipemap.sim.network import Network
 from pipemap.sim.obstacles import Obstacle, ObstacleKind
-from pipemap.sim.robot import PlanarPose
+from pipemap.sim.policy import right_most
+from pipemap.sim.recovery import RecoveryConfig
+from pipemap.sim.robot import PlanarPose, Robot
 from pipemap.sim.stream import (
     NodeArrival,
     NodeDeparture,
@@ -54,7 +61,6 @@ from pipemap.sim.stream import (
     SweepEnd,
     SweepImage,
     SweepStart,
-    TruePose,
 )
 from pipemap.sim.world import CameraSpec, World
 
@@ -71,10 +77,13 @@ __all__ = [
 ]
 
 _NS_PER_S = 1_000_000_000
-#: Placement conditions: the camera motor's step, a probe move, the cruising speed.
-_SWEEP_STEP_NS = 500_000_000
+#: Placement conditions: carrying the robot to the next node, a probe move.
+_CARRY_NS = 10 * _NS_PER_S
 _PROBE_MOVE_NS = 2 * _NS_PER_S
-_CRUISE_MPS = ExplorerConfig().speed_mps
+#: A placed robot has no watchdog: it only sweeps and scans where it is put down.
+_NO_TIME_LIMIT = 2**62
+#: The seed stream of a placed robot's sensors (with the run's seed).
+PLACED_ROBOT_STREAM = 21
 
 
 @dataclass(frozen=True)
@@ -160,21 +169,21 @@ class _OnlineSink:
         if isinstance(record, NodeArrival):
             self.visits += 1
         if isinstance(record, SweepEnd):
-            sweep = record.sweep
+            sweep, truth = record.sweep, record.truth
             self.put(
                 SweepDone(
                     record.t_ns,
                     record.sweep_id,
                     record.visit_id,
                     len(sweep.images),
-                    sweep.start_pose,
-                    sweep.true_node,
+                    truth.camera_pose,
+                    truth.node,
                 )
             )
             self.sweeps += 1
             if sweep.probe is None:
-                self.true_nodes.add(sweep.true_node)
-                self.true_path.append(sweep.true_node)
+                self.true_nodes.add(truth.node)
+                self.true_path.append(truth.node)
         else:
             self.put(record)
         self.online(record)
@@ -210,84 +219,112 @@ class _PlacedProbes:
         self.sink, self.visit, self.visit_id, self.runner = sink, visit, visit_id, runner
 
     def probe(self, request: ProbeRequest) -> ImageSet | None:
-        sweep = self.visit.probe(request.yaw_rad, request.forward_m, request.left_m)
-        self.runner.clock_ns += _PROBE_MOVE_NS
+        moved = self.visit.moved(request.yaw_rad, request.forward_m, request.left_m)
+        m = self.runner.put_down(moved, self.runner.robot_time_ns() + _PROBE_MOVE_NS)
+        sweep, truth = self.visit.probe(
+            request.yaw_rad, request.forward_m, request.left_m, m.yaw_est
+        )
         probe = (request.kind.value, request.yaw_rad, request.forward_m, request.left_m)
-        self.runner.emit_sweep(sweep, self.visit_id, probe)
+        self.runner.emit_sweep(sweep, truth, self.visit_id, probe)
         camera = self.sink.camera
         return gray_set(sweep.images, camera.fov_rad, sweep.camera_angle_rad, sweep.imu_tilt_rad)
 
 
 class _PlacedRun:
-    """The paper's placement conditions on a simulated clock."""
+    """The paper's placement conditions: the robot carried by hand along the tour and
+    put down at each node, where it sweeps its camera and scans for the exits with its
+    own range sensors, as the autonomous robot does. Its node events hold only what
+    it measured: the exits from its scan, relative to its gyro's heading estimate
+    when put down (the gyro runs while it is carried, see :meth:`Robot.place`); its
+    dead reckoning since it was put down; its odometer, which counts only its own
+    wheels. Its sweeps start at the multiple of ``2*pi/N`` nearest that estimate. It
+    leaves by its right-most measured exit, the tour's rule, and the experimenter
+    carries it along the tour. Log time is the robot's, a fixed carry time between
+    nodes."""
 
     def __init__(self, world: World, settings: RecordSettings, sink: _OnlineSink) -> None:
         self.world = world
         self.settings = settings
         self.sink = sink
-        self.clock_ns = 0
         self.sweep_id = 0
-        self.distance_m = 0.0
+        self.distance_m = 0.0  # carried, from the truth: the summary's only
+        self.config = settings.explorer_config()
+        self.motion: Motion | None = None
+
+    def robot_time_ns(self) -> int:
+        """The robot's clock (0 before it is first put down)."""
+        return 0 if self.motion is None else self.motion.robot.t_ns
+
+    def put_down(self, where: Pose, t_ns: int) -> Motion:
+        """Carry the robot to ``where`` (its body; the camera's tilt aside) and put it
+        down at ``t_ns``; it stands still a control period, its gyro reading the turn."""
+        pose = PlanarPose(where.x_m, where.y_m, where.yaw_rad)
+        if self.motion is None:
+            rng = np.random.default_rng([self.settings.seed, PLACED_ROBOT_STREAM])
+            robot = Robot(self.world, pose, rng)
+            robot.place(pose, t_ns)
+            self.motion = Motion(robot, self.config, RecoveryConfig(), self.sink, _NO_TIME_LIMIT)
+            # Its frame is the start's, as the autonomous robot's is.
+        else:
+            self.motion.robot.place(pose, t_ns)
+        m = self.motion
+        m.put_down()
+        m.state = "put down"
+        m.drive(0.0, 0.0, self.config.control_period_ns)
+        return m
 
     def emit_sweep(
-        self, sweep: Sweep, visit_id: int, probe: tuple[str, float, float, float] | None
+        self,
+        sweep: Sweep,
+        truth: SweepTruth,
+        visit_id: int,
+        probe: tuple[str, float, float, float] | None,
     ) -> None:
+        """Log ``sweep`` as the robot takes it, standing still for each image."""
+        m = self.motion
+        assert m is not None
         self.sweep_id += 1
         n = len(sweep.images)
         fov = self.settings.camera().fov_rad
-        start = sweep.start_pose
-        yaw = start.yaw_rad - sweep.camera_angle_rad  # the robot's heading
-        self.sink(TruePose(self.clock_ns, PlanarPose(start.x_m, start.y_m, yaw)))
-        self.sink(
-            SweepStart(
-                self.clock_ns,
-                self.sweep_id,
-                visit_id,
-                n,
-                sweep.camera_angle_rad,
-                fov,
-                probe,
-                sweep.imu_tilt_rad,
-            )
-        )
+        m.state = "sweeping"
+        t = m.robot.t_ns
+        angle = sweep.camera_angle_rad
+        self.sink(SweepStart(t, self.sweep_id, visit_id, n, angle, fov, probe, sweep.imu_tilt_rad))
         for j, image in enumerate(sweep.images):
-            angle = sweep.camera_angle_rad - j * 2.0 * math.pi / n
-            self.sink(SweepImage(self.clock_ns, self.sweep_id, visit_id, j, angle, image))
-            self.clock_ns += _SWEEP_STEP_NS
-        self.sink(SweepEnd(self.clock_ns, self.sweep_id, visit_id, sweep))
+            step = angle - j * 2.0 * math.pi / n
+            self.sink(SweepImage(m.robot.t_ns, self.sweep_id, visit_id, j, step, image))
+            m.drive(0.0, 0.0, self.config.sweep_step_ns)  # the camera motor turns
+        self.sink(SweepEnd(m.robot.t_ns, self.sweep_id, visit_id, sweep, truth))
 
     def run(self) -> str:
         episode = Episode(self.world, self.settings.sim_config(), start=self.settings.start)
-        network = self.world.network
+        network = episode.network  # the experimenter's: the distance carried, for the summary
         previous: str | None = None
         for visit in episode.visits():
             visit_id = visit.index + 1
             if previous is not None:
-                length = network.length_m(previous, visit.node)
-                self.distance_m += length
-                self.clock_ns += round(length / _CRUISE_MPS * _NS_PER_S)
-            self.sink(NodeArrival(self.clock_ns, visit_id))
+                self.distance_m += network.length_m(previous, visit.node)
+            m = self.put_down(visit.pose, self.robot_time_ns() + _CARRY_NS)
+            arrival = m.yaw_est
+            self.sink(NodeArrival(m.robot.t_ns, visit_id))
             if self.settings.condition is Condition.ACTIVE:
                 self.sink.online.probes = _PlacedProbes(self.sink, visit, visit_id, self)
             else:
                 self.sink.online.probes = NoProbes()
-            self.emit_sweep(visit.sweep, visit_id, None)
-            # Placed by hand, the robot makes no exit scan: its exits are the
-            # junction's pipes as placed (exact), as its exit count always was.
-            headings = network.pipe_headings(visit.node)
-            exits = tuple(
-                math.remainder(headings[n] - visit.pose.yaw_rad, 2.0 * math.pi)
-                for n in network.neighbours(visit.node)
-            )
-            here = visit.pose
-            self.sink(
-                NodeExits(self.clock_ns, visit_id, exits, here.x_m, here.y_m, self.distance_m)
-            )
-            leave = episode.tour.visits[visit.index].leave_to
-            if leave is not None:
-                turn = math.remainder(headings[leave] - visit.pose.yaw_rad, 2.0 * math.pi)
-                exits_count = network.degree(visit.node)
-                self.sink(NodeDeparture(self.clock_ns, visit_id, exits_count, turn))
+            sweep, truth = visit.take_sweep(arrival)
+            self.emit_sweep(sweep, truth, visit_id, None)
+            # As the autonomous robot: to the centre its range scan finds (where it can
+            # turn clear of the walls), then the exit scan.
+            recentre(m, m.xy_est.copy())
+            exits, _steer = scan(m)
+            relative = tuple(math.remainder(e - arrival, 2.0 * math.pi) for e in exits)
+            x, y = (float(v) for v in m.xy_est)
+            odometer = m.result.distance_m
+            self.sink(NodeExits(m.robot.t_ns, visit_id, relative, x, y, odometer))
+            if episode.tour.visits[visit.index].leave_to is not None:
+                chosen = right_most(relative)
+                turn = math.pi if chosen is None else relative[chosen]
+                self.sink(NodeDeparture(m.robot.t_ns, visit_id, len(relative), turn))
             previous = visit.node
         return "complete" if episode.tour.complete else "incomplete"
 
@@ -384,7 +421,7 @@ def record_run(
             else:
                 placed = _PlacedRun(world, settings, sink)
                 status = placed.run()
-                distance, duration = placed.distance_m, placed.clock_ns
+                distance, duration = placed.distance_m, placed.robot_time_ns()
                 ok = status == "complete"
             sink.finish()
         count = writer.finish(

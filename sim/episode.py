@@ -17,14 +17,17 @@ default, starts it at the multiple of ``2*pi/N`` nearest its heading estimate
 (``align_sweeps``): two visits of a node then see along the same directions
 whatever pipe they arrived by, where junctions 90 degrees apart would leave
 6-image sweeps half a step out of line. The start angle relative to the heading is
-part of the sweep (``camera_angle_rad``), so rotations stay between headings. Placed
-by hand, the robot knows its heading exactly.
+part of the sweep (``camera_angle_rad``), so rotations stay between headings. A
+visit's sweep starts nearest the heading the robot estimates (the recorder's placed
+robot: its gyro's, :meth:`Visit.take_sweep`) or, for ``pipemap sim``'s image sets,
+its true heading (:attr:`Visit.sweep`).
 The fully autonomous condition, driven by the sensor-based controller, is not
 part of this module.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from collections.abc import Iterator
@@ -40,7 +43,16 @@ from pipemap.sim.world import CameraSpec, World
 #: The seed stream of the robot's tilt (with the run's seed).
 TILT_STREAM = 20
 
-__all__ = ["Condition", "Episode", "Pose", "SimConfig", "Sweep", "Visit", "sweep_start_angle"]
+__all__ = [
+    "Condition",
+    "Episode",
+    "Pose",
+    "SimConfig",
+    "Sweep",
+    "SweepTruth",
+    "Visit",
+    "sweep_start_angle",
+]
 
 
 class Condition(enum.Enum):
@@ -101,17 +113,24 @@ def check_tilt(tilt_rad: float, imu_tilt_noise_rad: float) -> None:
 
 @dataclass(frozen=True, eq=False)
 class Sweep:
-    """One camera sweep: N RGB images (N, H, W, 3) in sweep order, the camera's pose at
-    its first image and the true node (ground truth, for scoring only), and the
-    commanded camera angle of the first image relative to the robot's heading."""
+    """One camera sweep, as the robot has it: N RGB images (N, H, W, 3) in sweep
+    order and the commanded camera angle of the first image relative to the robot's
+    heading. Its ground truth travels beside it (:class:`SweepTruth`)."""
 
     images: np.ndarray
-    start_pose: Pose
-    true_node: str
     probe: tuple[float, float, float] | None = None  # (yaw, forward, left) of a probe
     camera_angle_rad: float = 0.0
     #: Roll and pitch as the robot's IMU reports them (robot data, noisy).
     imu_tilt_rad: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class SweepTruth:
+    """Ground truth of a sweep, for scoring only: the node it was taken at (``?``
+    when none is near) and the camera's true pose at its first image."""
+
+    node: str
+    camera_pose: Pose
 
 
 def sweep_start_angle(heading_estimate_rad: float, images: int, align: bool) -> float:
@@ -133,25 +152,53 @@ class Visit:
         self.index = index
         self.node = node
         self.pose = pose
-        self.sweep = episode._sweep(node, pose)
+        self._sweep: tuple[Sweep, SweepTruth] | None = None
 
-    def probe(self, yaw_rad: float, forward_m: float, left_m: float) -> Sweep:
-        """The sweep after turning by ``yaw_rad`` and moving in the robot's own frame."""
-        if self._episode.config.condition is not Condition.ACTIVE:
-            raise SimError("probe moves are only made in the active condition")
+    @property
+    def sweep(self) -> Sweep:
+        """The sweep at the placement, started at the multiple of ``2*pi/N`` nearest
+        the robot's true heading (a robot told its heading; ``pipemap sim``'s image
+        sets). The same sweep every time it is asked for."""
+        return self._told()[0]
+
+    @property
+    def sweep_truth(self) -> SweepTruth:
+        """The truth of :attr:`sweep`."""
+        return self._told()[1]
+
+    def _told(self) -> tuple[Sweep, SweepTruth]:
+        if self._sweep is None:
+            self._sweep = self.take_sweep(self.pose.yaw_rad)
+        return self._sweep
+
+    def take_sweep(self, heading_estimate_rad: float) -> tuple[Sweep, SweepTruth]:
+        """The sweep at the placement, started at the multiple of ``2*pi/N`` nearest
+        ``heading_estimate_rad``, the robot's own estimate of its heading."""
+        return self._episode._sweep(self.node, self.pose, heading_estimate_rad)
+
+    def moved(self, yaw_rad: float, forward_m: float, left_m: float) -> Pose:
+        """The pose after turning by ``yaw_rad`` and moving in the robot's own frame."""
         p = self.pose
         x = p.x_m + forward_m * math.cos(p.yaw_rad) - left_m * math.sin(p.yaw_rad)
         y = p.y_m + forward_m * math.sin(p.yaw_rad) + left_m * math.cos(p.yaw_rad)
-        moved = Pose(x, y, p.z_m, p.roll_rad, p.pitch_rad, p.yaw_rad + yaw_rad)
-        sweep = self._episode._sweep(self.node, moved)
-        return Sweep(
-            sweep.images,
-            sweep.start_pose,
-            self.node,
-            (yaw_rad, forward_m, left_m),
-            sweep.camera_angle_rad,
-            sweep.imu_tilt_rad,
-        )
+        return Pose(x, y, p.z_m, p.roll_rad, p.pitch_rad, p.yaw_rad + yaw_rad)
+
+    def probe(
+        self,
+        yaw_rad: float,
+        forward_m: float,
+        left_m: float,
+        heading_estimate_rad: float | None = None,
+    ) -> tuple[Sweep, SweepTruth]:
+        """The sweep after turning by ``yaw_rad`` and moving in the robot's own frame,
+        started nearest ``heading_estimate_rad`` (default: the true heading there)."""
+        if self._episode.config.condition is not Condition.ACTIVE:
+            raise SimError("probe moves are only made in the active condition")
+        moved = self.moved(yaw_rad, forward_m, left_m)
+        estimate = moved.yaw_rad if heading_estimate_rad is None else heading_estimate_rad
+        sweep, truth = self._episode._sweep(self.node, moved, estimate)
+        probe = (yaw_rad, forward_m, left_m)
+        return dataclasses.replace(sweep, probe=probe), truth
 
 
 class Episode:
@@ -168,9 +215,11 @@ class Episode:
         # Tilts draw from their own stream: a level run's placements stay as they were.
         self._tilt_rng = np.random.default_rng([config.seed, TILT_STREAM])
 
-    def _sweep(self, node: str, pose: Pose) -> Sweep:
+    def _sweep(
+        self, node: str, pose: Pose, heading_estimate_rad: float
+    ) -> tuple[Sweep, SweepTruth]:
         n = self.config.images_per_sweep
-        angle = sweep_start_angle(pose.yaw_rad, n, self.config.align_sweeps)
+        angle = sweep_start_angle(heading_estimate_rad, n, self.config.align_sweeps)
         first = pose.yaw_rad + angle
         # A hair off any ring of mesh vertices: TinyRenderer slows down 100x on one.
         eye = (pose.x_m + 1.3e-4, pose.y_m + 0.7e-4, pose.z_m)
@@ -197,15 +246,18 @@ class Episode:
             pose.roll_rad + float(self._tilt_rng.normal(0.0, noise)) if noise else pose.roll_rad,
             pose.pitch_rad + float(self._tilt_rng.normal(0.0, noise)) if noise else pose.pitch_rad,
         )
-        return Sweep(np.stack(views), camera, node, camera_angle_rad=angle, imu_tilt_rad=imu)
+        sweep = Sweep(np.stack(views), camera_angle_rad=angle, imu_tilt_rad=imu)
+        return sweep, SweepTruth(node, camera)
 
-    def _arrival_heading(self, node: str, arrived_from: str | None, leave_to: str | None) -> float:
+    def _arrival_heading(self, node: str, arrived_from: str | None) -> float:
         headings = self.network.pipe_headings(node)
-        if arrived_from is not None:
-            return math.remainder(headings[arrived_from] + math.pi, 2.0 * math.pi)
-        if leave_to is not None:
-            return headings[leave_to]
-        return 0.0
+        if not headings:
+            return 0.0
+        # At the start, as if just arrived along the pipe from the first neighbour (the
+        # tour's and the autonomous robot's convention): the right-most exit the robot
+        # finds there is then the tour's first pipe.
+        came = arrived_from if arrived_from is not None else self.network.neighbours(node)[0]
+        return math.remainder(headings[came] + math.pi, 2.0 * math.pi)
 
     def _placed(self, node: str, heading: float) -> Pose:
         n = self.network.node(node)
@@ -234,7 +286,7 @@ class Episode:
         return Pose(x, y, self.config.camera_height_m, roll, pitch, heading)
 
     def visits(self) -> Iterator[Visit]:
-        """The visits in tour order, each with its sweep already taken."""
+        """The visits in tour order; each takes its sweep when asked."""
         for index, visit in enumerate(self.tour.visits):
-            heading = self._arrival_heading(visit.node, visit.arrived_from, visit.leave_to)
+            heading = self._arrival_heading(visit.node, visit.arrived_from)
             yield Visit(self, index, visit.node, self._placed(visit.node, heading))

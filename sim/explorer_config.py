@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from pipemap.sim.episode import Sweep, check_tilt
+from pipemap.sim.episode import Sweep, SweepTruth, check_tilt
 from pipemap.sim.network import Network
 from pipemap.sim.policy import RunStatus
 from pipemap.sim.robot import NS_PER_S, Reading
@@ -109,10 +109,12 @@ def default_time_limit_ns(network: Network) -> int:
 
 @dataclass
 class ExplorationResult:
-    """What a run produced: sweeps in visit order, every sensor reading, and why it ended."""
+    """What a run produced: sweeps in visit order (and beside them, their truth, for
+    scoring only), every sensor reading, and why it ended."""
 
     status: RunStatus
     sweeps: list[Sweep] = field(default_factory=list)
+    sweep_truths: list[SweepTruth] = field(default_factory=list)
     readings: list[Reading] = field(default_factory=list)
     events: list[tuple[int, str]] = field(default_factory=list)
     distance_m: float = 0.0

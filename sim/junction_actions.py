@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from pipemap.sim.episode import Pose, Sweep, sweep_start_angle
+from pipemap.sim.episode import Pose, Sweep, SweepTruth, sweep_start_angle
 from pipemap.sim.motion import Motion
 from pipemap.sim.policy import RunStatus
 from pipemap.sim.robot import PlanarPose, RangeReading
@@ -69,13 +69,13 @@ def sweep(
         m.drive(0.0, 0.0, c.sweep_step_ns)  # the camera motor turns; the robot waits
     truth = true_node_of(pose) if true_node_of is not None else ""
     start = Pose(pose.x_m, pose.y_m, c.camera_height_m, roll, pitch, first)
-    taken = Sweep(
-        np.stack(images), start, str(truth), camera_angle_rad=angle, imu_tilt_rad=imu_tilt_rad
-    )
+    taken = Sweep(np.stack(images), camera_angle_rad=angle, imu_tilt_rad=imu_tilt_rad)
+    known = SweepTruth(str(truth), start)
     m.result.sweeps.append(taken)
+    m.result.sweep_truths.append(known)
     m.event(f"sweep {number}")
     if sink is not None:
-        sink(SweepEnd(m.robot.t_ns, number, number, taken))
+        sink(SweepEnd(m.robot.t_ns, number, number, taken, known))
 
 
 def scan_samples(m: Motion) -> list[tuple[float, float]]:

@@ -56,6 +56,14 @@ class Motion:
         self.stall_ns = 0
         self.halt: RunStatus | None = None  # a watchdog fired during a recovery
 
+    def put_down(self) -> None:
+        """The robot has been carried by hand and put down: its gyro measured the
+        carry's turn (the heading estimate keeps integrating it), but no wheel turned,
+        so its position estimate starts again at its own origin. The odometer stays."""
+        self.xy_est = np.zeros(2, dtype=np.float64)
+        self.stall_ns = 0
+        self._last_progress_ns = self.robot.t_ns  # the watchdog's progress starts here
+
     def _emit_step(self, v: float, w: float) -> None:
         if self.sink is None:
             return

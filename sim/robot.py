@@ -141,6 +141,27 @@ class Robot:
             "encoder": self.spec.period_ns(self.spec.encoder_rate_hz),
         }
 
+    def place(self, pose: PlanarPose, t_ns: int) -> None:
+        """Carry the robot by hand to ``pose`` and put it down at time ``t_ns`` (a
+        placement condition's experimenter): it stands still there, its wheels (and
+        encoders) as they were, each sensor reading again on its own grid after
+        ``t_ns``. The gyro ran while it was carried: its first sample after ``t_ns``
+        holds the carry's turn (the shortest way round)."""
+        if t_ns < self.t_ns:
+            raise SimError(f"a placement at {t_ns} ns is before the robot's time {self.t_ns} ns")
+        self._turned_rad += math.remainder(pose.yaw_rad - self.pose.yaw_rad, 2.0 * math.pi)
+        self.pose = pose
+        self.t_ns = t_ns
+        self._speed_mps = 0.0
+        self._accel = (0.0, 0.0)
+        for key, rate in (
+            ("range", self.spec.tof_rate_hz),
+            ("imu", self.spec.imu_rate_hz),
+            ("encoder", self.spec.encoder_rate_hz),
+        ):
+            period = self.spec.period_ns(rate)
+            self._due[key] = (t_ns // period + 1) * period
+
     def ranges(self) -> tuple[float, float, float]:
         """One noisy reading of the three rangers at the current pose."""
         s, p = self.spec, self.pose

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipemap.sim.episode import Sweep
+from pipemap.sim.episode import Sweep, SweepTruth
 from pipemap.sim.robot import EncoderReading, ImuReading, PlanarPose, RangeReading
 
 __all__ = [
@@ -88,12 +88,14 @@ class SweepImage:
 
 @dataclass(frozen=True, eq=False)
 class SweepEnd:
-    """A sweep is complete; ``sweep`` holds its images and its truth."""
+    """A sweep is complete; ``sweep`` holds its images (robot data), ``truth`` where
+    it truly was (truth: for the log's ``/truth`` and scoring only)."""
 
     t_ns: int
     sweep_id: int
     visit_id: int
     sweep: Sweep
+    truth: SweepTruth
 
 
 @dataclass(frozen=True)

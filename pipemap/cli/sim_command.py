@@ -112,7 +112,7 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         for visit in episode.visits():
             folder = target / f"{visit.index + 1:04d}"
             sweep = visit.sweep
-            info = _info(sweep.start_pose, visit.node)
+            info = _info(visit.sweep_truth.camera_pose, visit.node)
             write_image_set(folder, sweep.images, info, sweep.camera_angle_rad)
             sweeps += 1
             if localizer is not None:
@@ -200,12 +200,14 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
             policy=policy,
             motor_faults=faults,
         )
-    for index, sweep in enumerate(result.sweeps, start=1):
-        info = _info(sweep.start_pose, sweep.true_node)
+    for index, (sweep, truth) in enumerate(
+        zip(result.sweeps, result.sweep_truths, strict=True), start=1
+    ):
+        info = _info(truth.camera_pose, truth.node)
         folder = target / f"{index:04d}"
         write_image_set(folder, sweep.images, info, sweep.camera_angle_rad, notes.get(index))
-    visited = {s.true_node for s in result.sweeps} - {"?"}
-    path = [s.true_node for s in result.sweeps]
+    visited = {s.node for s in result.sweep_truths} - {"?"}
+    path = [s.node for s in result.sweep_truths]
     pipes = {frozenset((p.a, p.b)) for p in network.pipes}
     driven = len({frozenset(ab) for ab in zip(path, path[1:], strict=False)} & pipes)
     # The robot believes it is done; the simulator knows whether it covered the network.
@@ -243,11 +245,11 @@ def _localize_with_probes(localizer, visit, folder: Path, fov_rad: float) -> int
     class _Probes:
         def probe(self, request):  # type: ignore[no-untyped-def]
             nonlocal saved
-            sweep = visit.probe(request.yaw_rad, request.forward_m, request.left_m)
+            sweep, truth = visit.probe(request.yaw_rad, request.forward_m, request.left_m)
             write_image_set(
                 folder / "probes" / request.kind.value,
                 sweep.images,
-                _info(sweep.start_pose, visit.node),
+                _info(truth.camera_pose, visit.node),
                 sweep.camera_angle_rad,
             )
             saved += 1

@@ -224,8 +224,8 @@ def test_routes_on_a_replayed_map_lead_the_robot_to_the_asked_junction(tmp_path:
             ]
             run, online = drive_route(world, camera, localizer, steps, seed=goal)
             assert run.status.value == "finished"
-            last = run.sweeps[-1].true_node
-            visited = [s.true_node for s in run.sweeps]
+            last = run.sweep_truths[-1].node
+            visited = [s.node for s in run.sweep_truths]
             assert last == true_node[goal], (goal, visited)
             # It went the planned way: one sweep per junction of the route.
             assert visited == [true_node[s.node] for s in steps]

@@ -32,7 +32,7 @@ def test_paper_is_explored_from_every_start(paper_world, start: str) -> None:  #
     # Every sweep is taken within 15 cm of a node centre, in the right-hand tour's order:
     # every node and every pipe is visited, and the robot ends where it started.
     planned = [v.node for v in right_hand_tour(paper_world.network, start).visits]
-    assert [s.true_node for s in result.sweeps] == planned
+    assert [s.node for s in result.sweep_truths] == planned
     # Each of the 6.95 m of pipe twice, plus the manoeuvres at junctions: 14.0-14.3 m
     # measured from the seven starts.
     assert 13.9 <= result.distance_m <= 1.05 * 13.9
@@ -47,8 +47,8 @@ def test_heading_estimate_holds_with_a_biased_gyro(paper_world) -> None:  # type
     result = autonomous_run(paper_world, TINY, seed=3, start="S")
     step = 2 * math.pi / 6
     assert result.status is RunStatus.FINISHED and len(result.sweeps) == 13
-    for sweep in result.sweeps:
-        misalignment = math.remainder(sweep.start_pose.yaw_rad, step)
+    for truth in result.sweep_truths:
+        misalignment = math.remainder(truth.camera_pose.yaw_rad, step)
         assert abs(misalignment) < math.radians(2.0)
     assert RobotSpec().gyro_bias_std_rps >= 0.001
 
@@ -57,11 +57,12 @@ def test_revisits_sweep_from_where_the_first_visit_did(paper_world) -> None:  # 
     # Dead ends and the far wall of a T: the front range fixes the place along the pipe.
     result = autonomous_run(paper_world, TINY, seed=2, start="B")
     network = paper_world.network
-    for sweep in result.sweeps:
-        node = network.node(sweep.true_node)
-        off = math.hypot(node.x_m - sweep.start_pose.x_m, node.y_m - sweep.start_pose.y_m)
+    for truth in result.sweep_truths:
+        node = network.node(truth.node)
+        pose = truth.camera_pose
+        off = math.hypot(node.x_m - pose.x_m, node.y_m - pose.y_m)
         limit = 0.03 if network.kind(node.label) is NodeKind.TEE else 0.01
-        assert off < limit, (sweep.true_node, off)
+        assert off < limit, (truth.node, off)
 
 
 @pytest.mark.parametrize(
@@ -76,9 +77,9 @@ def test_random_trees_are_fully_explored(seed: int, bend: bool) -> None:
     with World(network, seed=seed, texture_px=32) as world:
         result = autonomous_run(world, TINY, seed=seed)
     assert result.status is RunStatus.FINISHED
-    assert {s.true_node for s in result.sweeps} == set(network.labels)
+    assert {s.node for s in result.sweep_truths} == set(network.labels)
     assert any(text == "bend passed" for _, text in result.events) == bend
-    assert result.sweeps[-1].true_node == "S"
+    assert result.sweep_truths[-1].node == "S"
 
 
 def test_same_seed_same_sensor_streams(paper_world) -> None:  # type: ignore[no-untyped-def]
@@ -94,7 +95,7 @@ def test_watchdog_ends_the_run_and_keeps_what_was_produced(paper_world) -> None:
         paper_world, TINY, seed=1, config=ExplorerConfig(time_limit_ns=60 * 10**9)
     )
     assert result.status is RunStatus.TIME_LIMIT
-    assert [s.true_node for s in result.sweeps][:2] == ["S", "A"]
+    assert [s.node for s in result.sweep_truths][:2] == ["S", "A"]
     assert result.events[-1][1] == "watchdog: time limit"
 
 
@@ -161,7 +162,7 @@ def test_a_passable_deposit_is_got_past_and_the_tour_goes_on(side: float) -> Non
     assert sum(t.startswith("stall: past it") for t in texts) == 2
     assert not any(t.startswith("pipe blocked") for t in texts)
     planned = [v.node for v in right_hand_tour(network, "S").visits]
-    assert [s.true_node for s in result.sweeps] == planned
+    assert [s.node for s in result.sweep_truths] == planned
 
 
 def test_a_blocking_deposit_is_given_up_and_the_run_finishes_without_it() -> None:
@@ -180,7 +181,7 @@ def test_a_blocking_deposit_is_given_up_and_the_run_finishes_without_it() -> Non
     departures = [r for r in records if isinstance(r, NodeDeparture)]
     again = [d for d in departures if d.visit_id == blocked[0].visit_id]
     assert len(again) == 2 and again[0].exit_rad == blocked[0].exit_rad
-    swept = [s.true_node for s in result.sweeps]
+    swept = [s.node for s in result.sweep_truths]
     assert "F" not in swept and set(swept) == set("SABCDE")
     assert swept[-1] == "S"
     assert result.duration_ns < default_time_limit_ns(network)

@@ -80,7 +80,7 @@ def test_the_controller_asks_its_policy_and_stops_when_told() -> None:
     assert result.status is RunStatus.INCONSISTENT
     assert [e for _, e in result.events][-2:] == ["told to stop", "stopped: map inconsistent"]
     # Left-most: from S to A; A has no pipe to the left, so on to C; C's left is E.
-    assert [s.true_node for s in result.sweeps] == list("SACE")
+    assert [s.node for s in result.sweep_truths] == list("SACE")
     assert [len(j.exits_rad) for j in policy.seen] == [1, 3, 4, 1]
     assert [j.visit_id for j in policy.seen] == [1, 2, 3, 4]
     odometers = [j.odometer_m for j in policy.seen]

@@ -189,7 +189,7 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
 
     from pipemap.sim import controller
     from pipemap.sim.controller import ExplorationResult, RunStatus
-    from pipemap.sim.episode import Pose, Sweep
+    from pipemap.sim.episode import Pose, Sweep, SweepTruth
 
     policies = []
     faults = []
@@ -199,8 +199,11 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     ):
         policies.append(policy)
         faults.append(motor_faults)
-        sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8), Pose(0.0, 0.0, 0.05), "S")
-        return ExplorationResult(RunStatus.FINISHED, sweeps=[sweep], distance_m=1.0)
+        sweep = Sweep(np.zeros((6, 32, 32, 3), np.uint8))
+        truth = SweepTruth("S", Pose(0.0, 0.0, 0.05))
+        return ExplorationResult(
+            RunStatus.FINISHED, sweeps=[sweep], sweep_truths=[truth], distance_m=1.0
+        )
 
     monkeypatch.setattr(controller, "autonomous_run", one_sweep_run)
     argv = ["sim", "--network", "paper", "--condition", "autonomous", "--resolution", "32"]

@@ -59,7 +59,7 @@ def test_tilts_are_seeded_bounded_and_reported_by_the_imu(paper_world) -> None: 
     for v in one:
         imu = np.array(v.sweep.imu_tilt_rad)
         assert np.abs(imu - (v.pose.roll_rad, v.pose.pitch_rad)).max() < 4 * 0.002
-        assert v.sweep.start_pose.roll_rad == v.pose.roll_rad
+        assert v.sweep_truth.camera_pose.roll_rad == v.pose.roll_rad
     assert all(v.sweep.imu_tilt_rad == (0.0, 0.0) for v in level)
     assert not np.array_equal(one[1].sweep.images, level[1].sweep.images)
 

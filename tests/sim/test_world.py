@@ -129,16 +129,16 @@ def test_probes_only_in_the_active_condition(paper_world) -> None:  # type: igno
         perfect.probe(0.1, 0.0, 0.0)
     active = Episode(paper_world, SimConfig(Condition.ACTIVE, seed=1, camera=SMALL))
     visit = list(active.visits())[1]
-    moved = visit.probe(0.5, 0.03, 0.0)
-    assert moved.probe == (0.5, 0.03, 0.0)
+    moved, truth = visit.probe(0.5, 0.03, 0.0)
+    assert moved.probe == (0.5, 0.03, 0.0) and truth.node == visit.node
     # The camera starts at its angle to the turned robot's heading.
     turned = visit.pose.yaw_rad + 0.5
-    assert moved.start_pose.yaw_rad == pytest.approx(turned + moved.camera_angle_rad)
+    assert truth.camera_pose.yaw_rad == pytest.approx(turned + moved.camera_angle_rad)
     step = 2.0 * math.pi / 6
     assert abs(moved.camera_angle_rad) <= step / 2 + 1e-12
-    assert math.remainder(moved.start_pose.yaw_rad, step) == pytest.approx(0.0, abs=1e-9)
+    assert math.remainder(truth.camera_pose.yaw_rad, step) == pytest.approx(0.0, abs=1e-9)
     assert math.hypot(
-        moved.start_pose.x_m - visit.pose.x_m, moved.start_pose.y_m - visit.pose.y_m
+        truth.camera_pose.x_m - visit.pose.x_m, truth.camera_pose.y_m - visit.pose.y_m
     ) == pytest.approx(0.03)
 
 
