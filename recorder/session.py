@@ -351,7 +351,8 @@ def record_run(
         sink = _OnlineSink(writer, localizer, camera, progress, observer)
         truth = messages.network_message(network, obstacles=deposits)
         sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
-        with World(network, seed=settings.seed, obstacles=deposits) as world:
+        looks = settings.looks(network)
+        with World(network, seed=settings.seed, obstacles=deposits, looks=looks) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
                 explorer = settings.explorer_config()

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,6 +19,7 @@ from pipemap.recorder.online import Explore
 from pipemap.recorder.topics import FORMAT_VERSION
 from pipemap.sim.controller import ExplorerConfig
 from pipemap.sim.episode import Condition, SimConfig
+from pipemap.sim.lookalike import TYPE_TOLERANCE_RAD, LookAlike, choose_looks
 from pipemap.sim.motor_faults import MOTOR_FAULT_S, MotorFault, draw_motor_faults
 from pipemap.sim.network import Network
 from pipemap.sim.obstacles import Obstacle, place_obstacles
@@ -52,8 +54,14 @@ class RecordSettings:
     #: Motor cut-outs while driving, drawn from the seed (autonomous condition): see
     #: :mod:`sim.motor_faults`. 0: none, and the log is as without the setting.
     motor_faults: int = 0
+    #: The fraction of junctions that take the look of another of their type, drawn
+    #: from the seed: see :mod:`sim.lookalike`. 0: every junction its own look, and
+    #: the log is as without the setting.
+    alike: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.alike) and 0.0 <= self.alike <= 1.0):
+            raise InputError(f"--alike must be a fraction in 0..1, got {self.alike}")
         what = (
             ("--obstacles", self.obstacles, "a deposit"),
             ("--motor-faults", self.motor_faults, "a motor cut-out"),
@@ -78,6 +86,10 @@ class RecordSettings:
         """The run's motor cut-outs (none by default)."""
         return draw_motor_faults(network, self.motor_faults, self.seed)
 
+    def looks(self, network: Network) -> LookAlike:
+        """Which junctions share a look (none by default)."""
+        return choose_looks(network, self.alike, self.seed)
+
     def camera(self) -> CameraSpec:
         """The camera of the run."""
         return CameraSpec(resolution_px=self.resolution_px, lamp_strength=self.lamp_strength)
@@ -89,6 +101,12 @@ class RecordSettings:
             "robot": dataclasses.asdict(RobotSpec()),
             "camera": dataclasses.asdict(camera),
         }
+        if self.alike:
+            simulator["alike"] = {
+                "fraction": self.alike,
+                "type_tolerance_rad": TYPE_TOLERANCE_RAD,
+                "groups": self.looks(network).groups(),
+            }
         if self.condition is Condition.AUTONOMOUS:
             simulator["explorer"] = dataclasses.asdict(self.explorer_config())
             # Only with deposits or cut-outs: a log without them stays as it always was.

@@ -66,6 +66,7 @@ __all__ = [
     "ScoreReport",
     "VisitScore",
     "latency_summary",
+    "look_alike_groups",
     "phase_means",
     "pair_statistics",
     "score",
@@ -160,6 +161,9 @@ class ScoreReport:
     #: Blocked pipes, marked and true; ``None`` when the truth has no deposit and the
     #: map marks nothing blocked.
     blocked: BlockedPipes | None = None
+    #: The true junctions that share a look (``record --alike``), each group's look's
+    #: own junction first; empty when every junction looks like itself alone.
+    look_alike: tuple[tuple[str, ...], ...] = ()
 
     @property
     def map_status(self) -> str:
@@ -201,6 +205,7 @@ class ScoreReport:
             "coverage": None if self.coverage is None else self.coverage.document(),
             "ports_correct": self.ports_correct,
             **({} if self.blocked is None else {"blocked": self.blocked.document()}),
+            **({"look_alike": [list(g) for g in self.look_alike]} if self.look_alike else {}),
             "visits": len(self.visits),
             "true_nodes": self.true_nodes,
             "predicted_nodes": self.predicted_nodes,
@@ -464,6 +469,23 @@ def score_replay(
         ports_correct=ports,
         mapped_part_correct=mapped,
         blocked=blocked,
+        look_alike=look_alike_groups(source.run_metadata()),
+    )
+
+
+def look_alike_groups(run: dict[str, str]) -> tuple[tuple[str, ...], ...]:
+    """The groups of true junctions that share a look, from the run metadata's
+    simulator settings (``record --alike``); none when it names none."""
+    try:
+        simulator = json.loads(run.get("simulator", "{}"))
+    except ValueError:
+        return ()
+    alike = simulator.get("alike") if isinstance(simulator, dict) else None
+    groups = alike.get("groups") if isinstance(alike, dict) else None
+    if not isinstance(groups, list):
+        return ()
+    return tuple(
+        tuple(str(label) for label in g) for g in groups if isinstance(g, list) and len(g) > 1
     )
 
 

@@ -15,6 +15,7 @@ __all__ = [
     "add_force",
     "add_json",
     "add_output",
+    "alike",
     "degrees",
     "fraction",
     "highpass",
@@ -77,6 +78,7 @@ _zoom = _checked(float, lambda v: math.isfinite(v) and 1.0 < v <= 2.0, "not in (
 tilt_deg = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 15.0, "not in [0, 15]")
 obstacles = _checked(int, lambda v: v >= 0, "an obstacle count must be >= 0")
 motor_faults = _checked(int, lambda v: v >= 0, "a cut-out count must be >= 0")
+alike = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "not in [0, 1]")
 highpass = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]")
 
 

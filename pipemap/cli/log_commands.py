@@ -122,6 +122,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         tilt_rad=math.radians(args.tilt_deg),
         obstacles=args.obstacles,
         motor_faults=args.motor_faults,
+        alike=args.alike,
     )
     settings.deposits(network)  # too many for the network: an error before any work
     live = None

@@ -181,6 +181,12 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
             f"{len(blocked['false_blocked'])} false, {len(blocked['missed'])} missed"
             f" ({', '.join(blocked['marked']) or 'none marked'})"
         )
+    if "look_alike" in doc:
+        groups = doc["look_alike"]
+        lines.append(
+            f"look-alike  {sum(len(g) for g in groups)} junctions share {len(groups)} looks: "
+            + "; ".join("=".join(g) for g in groups)
+        )
     ports = {True: "correct", False: "WRONG", None: "none (no exits in the log)"}
     latency = doc["latency_ms"]
     lines += [

@@ -71,6 +71,7 @@ def _clear_earlier_sweeps(target: Path) -> None:
 def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, build the world, run the episode, write the sweeps, print a summary."""
     from pipemap.sim.episode import Condition, Episode, SimConfig
+    from pipemap.sim.lookalike import choose_looks
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
 
@@ -95,7 +96,8 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
         return _run_autonomous(args, network, camera, target, out, deposits, faults)
-    with World(network, seed=args.seed) as world:
+    looks = choose_looks(network, args.alike, args.seed)
+    with World(network, seed=args.seed, looks=looks) as world:
         episode = Episode(world, config, start=args.start)
         localizer = None
         if condition is Condition.ACTIVE:
@@ -174,6 +176,7 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
     from pipemap.localizer import Localizer, LocalizerConfig
     from pipemap.recorder.online import Explore, OnlineLocalizer, make_policy
     from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
+    from pipemap.sim.lookalike import choose_looks
     from pipemap.sim.stream import NodeDeparture, NodeExits, SimRecord
     from pipemap.sim.world import World
 
@@ -192,7 +195,8 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
             n = notes[record.visit_id]
             notes[record.visit_id] = RobotNotes(n.exits_rad, record.exit_rad, n.odometer_m)
 
-    with World(network, seed=args.seed, obstacles=deposits) as world:
+    looks = choose_looks(network, args.alike, args.seed)
+    with World(network, seed=args.seed, obstacles=deposits, looks=looks) as world:
         config = ExplorerConfig(
             images_per_sweep=args.images,
             align_sweeps=args.align_sweeps,

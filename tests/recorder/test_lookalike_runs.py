@@ -1,0 +1,69 @@
+"""Runs in worlds whose junctions look alike, end to end: ``record --alike``, the
+log's simulator settings, ``score``'s report of the shared looks, and bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from pipemap.recorder import METADATA_RUN, read_log
+from tests.cli.common import assert_one_error, run
+
+#: The paper's network at alike 1: the entry and its four dead ends wear one look.
+ALIKE = ["S", "B", "D", "E", "F"]
+
+
+@pytest.fixture(scope="module")
+def alike_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("alike") / "run.mcap"
+    from pipemap.recorder import RecordSettings, record_run
+    from pipemap.sim.network import build_network
+
+    settings = RecordSettings("paper", resolution_px=64, alike=1.0)
+    record_run(path, settings, build_network("paper"), "test")
+    return path
+
+
+def test_the_log_names_the_fraction_and_the_junctions_that_share_a_look(
+    alike_run: Path,
+) -> None:
+    run_meta = read_log(alike_run).metadata[METADATA_RUN]
+    simulator = json.loads(run_meta["simulator"])
+    assert simulator["alike"]["fraction"] == 1.0
+    assert [sorted(g) for g in simulator["alike"]["groups"]] == [sorted(ALIKE)]
+
+
+def test_score_reports_which_true_junctions_share_a_look(
+    alike_run: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    status, out, err = run(["score", str(alike_run), "--json"], capfd)
+    assert status == 0, err
+    doc = json.loads(out)
+    assert [sorted(g) for g in doc["look_alike"]] == [sorted(ALIKE)]
+    status, out, err = run(["score", str(alike_run)], capfd)
+    line = next(t for t in out.splitlines() if t.startswith("look-alike"))
+    assert "5 junctions share 1 looks" in line
+    assert all(label in line for label in ALIKE)
+
+
+def test_a_log_without_alike_reports_no_shared_look(
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    stored = Path(__file__).resolve().parents[2] / "recordings" / "random8_loops.mcap"
+    status, out, _ = run(["score", str(stored), "--json"], capfd)
+    assert status == 0 and "look_alike" not in json.loads(out)
+    assert "alike" not in json.loads(read_log(stored).metadata[METADATA_RUN]["simulator"])
+
+
+@pytest.mark.parametrize("command", ["record", "sim"])
+@pytest.mark.parametrize("value", ["1.5", "-0.1", "nan", "half"])
+def test_a_bad_alike_gets_one_line_and_exit_2(
+    command: str, value: str, tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    out_flag = ["-o", str(tmp_path / "run.mcap")] if command == "record" else []
+    out_flag = out_flag or ["--save-sweeps", str(tmp_path / "sweeps")]
+    status, out, err = run([command, "--network", "paper", "--alike", value, *out_flag], capfd)
+    assert_one_error(status, out, err, "--alike")
+    assert list(tmp_path.iterdir()) == []
