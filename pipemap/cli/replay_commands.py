@@ -18,6 +18,7 @@ from typing import Any, TextIO
 from pipemap.cli.localizer_options import (
     fast_config,
     illumination_setting,
+    odometry_check,
     port_check,
     two_view_settings,
 )
@@ -35,7 +36,8 @@ __all__ = [
 
 def localizer_config(args: argparse.Namespace) -> Any:
     """The localizer's settings from ``--threshold``, ``--no-active-vision``,
-    ``--allow-repeat``, ``--no-verify``, ``--no-two-view``, ``--no-port-check`` and the
+    ``--allow-repeat``, ``--no-verify``, ``--no-two-view``, ``--no-port-check``,
+    ``--no-odometry-check`` and the
     similarity options (``--downsample``, ``--zoom``, ...)."""
     from pipemap.localizer import LocalizerConfig
 
@@ -48,6 +50,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         two_view=two_view,
         verify=verify,
         port_check=port_check(args),
+        odometry_check=odometry_check(args),
         lamp=illumination_setting(args),
     )
 

@@ -67,3 +67,18 @@ def test_a_bad_alike_gets_one_line_and_exit_2(
     status, out, err = run([command, "--network", "paper", "--alike", value, *out_flag], capfd)
     assert_one_error(status, out, err, "--alike")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_no_odometry_check_turns_the_localizers_check_off() -> None:
+    from pipemap.cli.localizer_options import apply_presets
+    from pipemap.cli.parser import build_parser
+    from pipemap.cli.replay_commands import localizer_config
+
+    for command in ("score", "replay"):
+        extra = ["-o", "m.json"] if command == "replay" else []
+        plain = build_parser().parse_args([command, "run.mcap", *extra])
+        off = build_parser().parse_args([command, "run.mcap", *extra, "--no-odometry-check"])
+        apply_presets(plain)
+        apply_presets(off)
+        assert localizer_config(plain).odometry_check
+        assert not localizer_config(off).odometry_check
