@@ -81,6 +81,10 @@ class LocalizerConfig:
     odometry_radius_m: float = 0.3
     odometry_drift_per_m: float = 0.005
     odometry_limit_m: float = 0.6
+    #: A known visit's other candidates that passed the same checks and matched within
+    #: this of the recognised junction's similarity are named as alike
+    #: (``Decision.alike``): junctions nothing told apart.
+    alike_margin: float = 0.02
     #: The sweeps are lit by the robot's own lamp: divide every image by its own
     #: illumination estimate (:mod:`localizer.illumination`) before matching, and
     #: when the two-view fit at the NCC's rotation fails, fit again at any rotation
@@ -106,7 +110,12 @@ class LocalizerConfig:
             raise LocalizerError(
                 "verify_inliers, expected_inliers and verify_candidates must be >= 1"
             )
-        odometry = (self.odometry_radius_m, self.odometry_drift_per_m, self.odometry_limit_m)
+        odometry = (
+            self.odometry_radius_m,
+            self.odometry_drift_per_m,
+            self.odometry_limit_m,
+            self.alike_margin,
+        )
         if not all(math.isfinite(v) and v >= 0.0 for v in odometry):
             raise LocalizerError(f"odometry tolerances must be finite and >= 0, got {odometry}")
         if not 0.0 < self.port_tolerance_rad < math.pi / 2.0:

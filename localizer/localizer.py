@@ -192,6 +192,7 @@ class Localizer:
         stored = None
         ports: PortMatch | None = None
         rejected: list[tuple[int, str]] = []
+        alike: tuple[int, ...] = ()
         timer.lap("ncc")
         if self.config.two_view:
             stored = stored_features(matched, self.config.two_view_config)
@@ -201,7 +202,7 @@ class Localizer:
             verified = self._verified(features, matched_all, turn, exits, rejected)
             known = verified is not None
             if verified is not None:
-                best, raw_fit, ports = verified
+                best, raw_fit, ports, alike = verified
                 match = matched_all[best].turned(turn)
                 sim = match.similarity
                 fit = raw_fit.turned(turn)
@@ -265,6 +266,7 @@ class Localizer:
             arrival_port=arrival,
             port_residual_rad=None if ports is None else ports.residual_rad,
             rejected=tuple(rejected),
+            alike=alike,
         )
         self._last = decision
         timer.lap("map")
@@ -399,7 +401,7 @@ class Localizer:
         turn: float,
         exits: tuple[float, ...] | None,
         rejected: list[tuple[int, str]],
-    ) -> tuple[int, TwoViewFit, PortMatch | None] | None:
+    ) -> tuple[int, TwoViewFit, PortMatch | None, tuple[int, ...]] | None:
         """The first of the junction the map expects (:meth:`expected_node`) and the
         best junctions (refined ones first, each by similarity) that the sweep's
         keypoints fit and whose ports the exits fit, with that fit (unturned) and the
@@ -435,5 +437,21 @@ class Localizer:
                 if ports is not None and not ports.agrees and self.config.port_check:
                     rejected.append((i, ports.reason))
                     continue
-                return i, fit, ports
+                return i, fit, ports, self._alike(i, expected, allowed, matches)
         return None
+
+    def _alike(
+        self, node: int, expected: int | None, allowed: list[int], matches: list[SetMatch]
+    ) -> tuple[int, ...]:
+        """The other candidates as good as ``node`` by all but its fit: as refined,
+        within ``alike_margin`` of its similarity; none when the map expected it."""
+        if node == expected:
+            return ()
+        sim = matches[node].similarity
+        return tuple(
+            j
+            for j in allowed
+            if j != node
+            and matches[j].refined == matches[node].refined
+            and abs(matches[j].similarity - sim) <= self.config.alike_margin
+        )

@@ -164,6 +164,9 @@ class ScoreReport:
     #: The true junctions that share a look (``record --alike``), each group's look's
     #: own junction first; empty when every junction looks like itself alone.
     look_alike: tuple[tuple[str, ...], ...] = ()
+    #: The visits whose decision named other junctions as alike (``Decision.alike``):
+    #: recognised as the best ranked of junctions nothing told apart.
+    alike_visits: tuple[str, ...] = ()
 
     @property
     def map_status(self) -> str:
@@ -176,6 +179,16 @@ class ScoreReport:
         """Decisions by outcome."""
         names = ("correct_known", "correct_new", "false_merge", "false_new")
         return {n: sum(1 for v in self.visits if v.outcome == n) for n in names}
+
+    def _undecided(self) -> dict[str, Any]:
+        """The decisions made among junctions nothing told apart, and how they went."""
+        outcomes = {v.visit: v.outcome for v in self.visits}
+        right = sum(outcomes.get(v) == "correct_known" for v in self.alike_visits)
+        return {
+            "visits": list(self.alike_visits),
+            "right": right,
+            "wrong": len(self.alike_visits) - right,
+        }
 
     def document(self, with_latency: bool = True) -> dict[str, Any]:
         """The JSON document of ``pipemap score --json``. Everything but the latency
@@ -206,6 +219,7 @@ class ScoreReport:
             "ports_correct": self.ports_correct,
             **({} if self.blocked is None else {"blocked": self.blocked.document()}),
             **({"look_alike": [list(g) for g in self.look_alike]} if self.look_alike else {}),
+            **({"undecided": self._undecided()} if self.alike_visits else {}),
             "visits": len(self.visits),
             "true_nodes": self.true_nodes,
             "predicted_nodes": self.predicted_nodes,
@@ -470,6 +484,7 @@ def score_replay(
         mapped_part_correct=mapped,
         blocked=blocked,
         look_alike=look_alike_groups(source.run_metadata()),
+        alike_visits=tuple(visit_label(v.visit_id) for v in result.visits if v.decision.alike),
     )
 
 

@@ -190,6 +190,13 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
             f"look-alike  {sum(len(g) for g in groups)} junctions share {len(groups)} looks: "
             + "; ".join("=".join(g) for g in groups)
         )
+    if "undecided" in doc:
+        undecided = doc["undecided"]
+        lines.append(
+            f"undecided   {len(undecided['visits'])} visits recognised among junctions "
+            f"nothing told apart: {undecided['right']} right, {undecided['wrong']} wrong "
+            f"({', '.join(undecided['visits'])})"
+        )
     ports = {True: "correct", False: "WRONG", None: "none (no exits in the log)"}
     latency = doc["latency_ms"]
     lines += [

@@ -77,3 +77,36 @@ def test_without_positions_nothing_changes(paper_sets: dict[str, PaperSet]) -> N
 def test_a_negative_tolerance_is_refused(field: str) -> None:
     with pytest.raises(LocalizerError, match="odometry"):
         replace(LocalizerConfig(), **{field: -0.1})
+
+
+def test_where_nothing_tells_two_junctions_apart_the_decision_says_so(
+    paper_sets: dict[str, PaperSet],
+) -> None:
+    # A and B have the very same sweep and no ports; the odometry kept them apart when
+    # B was first seen. A visit with no dead reckoning fits both equally: the decision
+    # names the other as alike instead of passing its choice for certain.
+    same, other = paper_sets["1"].images, paper_sets["4"].images
+    loc = Localizer()
+    assert not loc.localize(same, position_m=ALIKE_A).known
+    assert not loc.localize(other, position_m=OTHER).known
+    assert not loc.localize(same, position_m=ALIKE_B).known
+    assert loc.localize(other, position_m=OTHER).node == 1
+    blind = loc.localize(same)
+    assert blind.known and blind.node in (0, 2)
+    assert blind.alike == (({0, 2} - {blind.node}).pop(),)
+    assert "as alike: " in blind.describe()
+    # With its dead reckoning the same visit is told apart: no alike.
+    loc.localize(other, position_m=OTHER)
+    placed = loc.localize(same, position_m=(2.05, -0.03), odometer_m=4.0)
+    assert placed.known and placed.node == 2 and placed.alike == ()
+
+
+def test_different_junctions_are_not_named_alike(paper_sets: dict[str, PaperSet]) -> None:
+    names = ["1", "4", "10"]
+    sets = [paper_sets[n] for n in names]
+    assert not any(a.same_junction(b) for a in sets for b in sets if a is not b)
+    loc = Localizer()
+    for one in sets:
+        assert not loc.localize(one.images).known
+    again = loc.localize(paper_sets["1_noise"].images)
+    assert again.known and again.node == 0 and again.alike == ()

@@ -82,3 +82,19 @@ def test_no_odometry_check_turns_the_localizers_check_off() -> None:
         apply_presets(off)
         assert localizer_config(plain).odometry_check
         assert not localizer_config(off).odometry_check
+
+
+def test_score_counts_the_decisions_made_among_junctions_nothing_told_apart() -> None:
+    from dataclasses import replace
+
+    from pipemap.replay import FileSource
+    from pipemap.replay.score import score
+
+    stored = Path(__file__).resolve().parents[2] / "recordings" / "random8_loops.mcap"
+    report = score(FileSource(stored))
+    assert "undecided" not in report.document(with_latency=False)
+    known = [v.visit for v in report.visits if v.outcome == "correct_known"]
+    new = [v.visit for v in report.visits if v.outcome == "correct_new"]
+    flagged = replace(report, alike_visits=(known[0], new[1]))
+    doc = flagged.document(with_latency=False)
+    assert doc["undecided"] == {"visits": [known[0], new[1]], "right": 1, "wrong": 1}
