@@ -3,6 +3,7 @@
     python benchmarks/bench_explore.py [--suite must|loops50|paper|all] [--resolution PX]
                                        [--jobs N] [--explore map|right-hand]
                                        [--alike F] [--first K] [--count N]
+                                       [--no-odometry-check]
 
 Each run is ``pipemap record`` (autonomous, the online localizer choosing exits from
 its map) into a temporary log, then ``pipemap score`` of that log. One line per run:
@@ -25,7 +26,8 @@ Suites: ``must`` is the issue's list (``paper`` from all 7 starts, ``grid:3x3``,
 ``paper`` is the paper's network from its 7 starts. ``--alike F`` records look-alike
 worlds (``pipemap record --alike F``: docs/lookalike.md); the line then ends with the
 decisions that went wrong (false merges, false new junctions). ``--first K --count N``
-runs N of the suite's runs from the K-th.
+runs N of the suite's runs from the K-th. ``--no-odometry-check`` records and replays
+with the localizer's odometry check off (the localizer before it existed).
 """
 
 from __future__ import annotations
@@ -103,8 +105,11 @@ class Outcome:
         )
 
 
-def run_case(case: Case, resolution_px: int, explore: str, alike: float = 0.0) -> Outcome:
+def run_case(
+    case: Case, resolution_px: int, explore: str, alike: float = 0.0, odometry_check: bool = True
+) -> Outcome:
     """Record ``case``, replay and score it."""
+    from pipemap.localizer import LocalizerConfig
     from pipemap.recorder import Explore, RecordSettings, record_run
     from pipemap.replay import FileSource, replay, score_replay
     from pipemap.replay.coverage import true_network
@@ -118,13 +123,14 @@ def run_case(case: Case, resolution_px: int, explore: str, alike: float = 0.0) -
         resolution_px=resolution_px,
         explore=Explore(explore),
         alike=alike,
+        odometry_check=odometry_check,
     )
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.mcap"
         recorded = record_run(path, settings, network, __version__)
         source = FileSource(path)
-        result = replay(source)
+        result = replay(source, LocalizerConfig(odometry_check=odometry_check))
         report = score_replay(result, source, settings.threshold)
         truth = true_network(source)
     wall = time.perf_counter() - began
@@ -224,18 +230,30 @@ def main() -> int:
     parser.add_argument("--first", type=int, default=0, help="skip the suite's first runs")
     parser.add_argument("--count", type=int, default=None, help="run this many at most")
     parser.add_argument("--alike", type=float, default=0.0, help="record --alike (0)")
+    parser.add_argument(
+        "--no-odometry-check", action="store_true", help="the localizer's odometry check off"
+    )
     args = parser.parse_args()
     todo = cases(args.suite)[args.first :]
     todo = todo if args.count is None else todo[: args.count]
     print(
         f"# bench_explore: {len(todo)} runs, {args.resolution} px, explore {args.explore}, "
-        f"alike {args.alike:g}, {args.jobs} job(s)",
+        f"alike {args.alike:g}, odometry check "
+        f"{'off' if args.no_odometry_check else 'on'}, {args.jobs} job(s)",
         flush=True,
     )
     outcomes: list[Outcome] = []
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         futures = [
-            pool.submit(run_case, c, args.resolution, args.explore, args.alike) for c in todo
+            pool.submit(
+                run_case,
+                c,
+                args.resolution,
+                args.explore,
+                args.alike,
+                not args.no_odometry_check,
+            )
+            for c in todo
         ]
         for future in futures:
             outcome = future.result()

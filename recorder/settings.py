@@ -58,6 +58,10 @@ class RecordSettings:
     #: from the seed: see :mod:`sim.lookalike`. 0: every junction its own look, and
     #: the log is as without the setting.
     alike: float = 0.0
+    #: The online localizer's odometry check (``LocalizerConfig.odometry_check``);
+    #: off only to measure what it buys (``benchmarks/bench_explore.py``). Off, the
+    #: run metadata says so; on, the log is as without the setting.
+    odometry_check: bool = True
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.alike) and 0.0 <= self.alike <= 1.0):
@@ -123,6 +127,7 @@ class RecordSettings:
             simulator["placement"] = dataclasses.asdict(self.sim_config())
             simulator["placement"].pop("camera")
             simulator["placement"]["condition"] = self.condition.value
+        extra = {} if self.odometry_check else {"odometry_check": "false"}
         return {
             "format_version": FORMAT_VERSION,
             "pipemap_version": version,
@@ -139,6 +144,7 @@ class RecordSettings:
             if self.condition is Condition.AUTONOMOUS
             else Explore.RIGHT_HAND.value,
             "simulator": json.dumps(simulator, sort_keys=True, default=_json_value),
+            **extra,
         }
 
     def explorer_config(self) -> ExplorerConfig:

@@ -98,3 +98,14 @@ def test_score_counts_the_decisions_made_among_junctions_nothing_told_apart() ->
     flagged = replace(report, alike_visits=(known[0], new[1]))
     doc = flagged.document(with_latency=False)
     assert doc["undecided"] == {"visits": [known[0], new[1]], "right": 1, "wrong": 1}
+
+
+def test_a_run_without_the_odometry_check_says_so_in_its_metadata() -> None:
+    from pipemap.recorder import RecordSettings
+    from pipemap.sim.network import build_network
+
+    net = build_network("paper")
+    plain = RecordSettings("paper").metadata(net, "test")
+    off = RecordSettings("paper", odometry_check=False).metadata(net, "test")
+    assert "odometry_check" not in plain
+    assert off.pop("odometry_check") == "false" and off == plain
