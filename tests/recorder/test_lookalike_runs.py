@@ -109,3 +109,17 @@ def test_a_run_without_the_odometry_check_says_so_in_its_metadata() -> None:
     off = RecordSettings("paper", odometry_check=False).metadata(net, "test")
     assert "odometry_check" not in plain
     assert off.pop("odometry_check") == "false" and off == plain
+
+
+def test_sim_draws_the_look_alike_world(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    # The entry S wears the dead ends' shared look at --alike 1: its sweep changes;
+    # at --alike 0 the sweep is the one of a run without the flag.
+    sweeps = {}
+    for name, extra in (("plain", []), ("zero", ["--alike", "0"]), ("one", ["--alike", "1"])):
+        out = tmp_path / name
+        argv = ["sim", "--network", "paper", "--resolution", "16", "--save-sweeps", str(out)]
+        status, _, err = run([*argv, *extra], capfd)
+        assert status == 0, err
+        sweeps[name] = [(out / "0001" / f"camera_image{k}.png").read_bytes() for k in (1, 2, 3)]
+    assert sweeps["zero"] == sweeps["plain"]
+    assert sweeps["one"] != sweeps["plain"]
