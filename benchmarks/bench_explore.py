@@ -1,7 +1,9 @@
 """Map-driven exploration on networks with loops: coverage, correctness, distance.
 
-    python benchmarks/bench_explore.py [--suite must|loops50|all] [--resolution PX]
+    python benchmarks/bench_explore.py [--suite must|loops50|paper|all] [--resolution PX]
                                        [--jobs N] [--explore map|right-hand]
+                                       [--alike F] [--first K] [--count N]
+                                       [--no-odometry-check]
 
 Each run is ``pipemap record`` (autonomous, the online localizer choosing exits from
 its map) into a temporary log, then ``pipemap score`` of that log. One line per run:
@@ -20,7 +22,12 @@ its map) into a temporary log, then ``pipemap score`` of that log. One line per 
 
 Suites: ``must`` is the issue's list (``paper`` from all 7 starts, ``grid:3x3``,
 ``grid:4x4``, ``grid:5x5``, ``random:N`` for N = 10, 15, ..., 40); ``loops50`` is
-50 seeded loop networks, ``random:N`` with N = 10 + k mod 21 and seed k, k = 0..49.
+50 seeded loop networks, ``random:N`` with N = 10 + k mod 21 and seed k, k = 0..49;
+``paper`` is the paper's network from its 7 starts. ``--alike F`` records look-alike
+worlds (``pipemap record --alike F``: docs/lookalike.md); the line then ends with the
+decisions that went wrong (false merges, false new junctions). ``--first K --count N``
+runs N of the suite's runs from the K-th. ``--no-odometry-check`` records and replays
+with the localizer's odometry check off (the localizer before it existed).
 """
 
 from __future__ import annotations
@@ -76,6 +83,8 @@ class Outcome:
     odometry_same_m: float
     odometry_other_m: float
     wall_s: float
+    false_merges: int = 0
+    false_new: int = 0
 
     @property
     def covered(self) -> bool:
@@ -92,11 +101,15 @@ class Outcome:
             f"  scan {self.scan_error_rad:.3f} residual {self.residual_rad:.3f}"
             f"  odo same {self.odometry_same_m:.2f} "
             f"other {self.odometry_other_m:.2f}  {self.wall_s:5.1f} s"
+            f"  false merge {self.false_merges} false new {self.false_new}"
         )
 
 
-def run_case(case: Case, resolution_px: int, explore: str) -> Outcome:
+def run_case(
+    case: Case, resolution_px: int, explore: str, alike: float = 0.0, odometry_check: bool = True
+) -> Outcome:
     """Record ``case``, replay and score it."""
+    from pipemap.localizer import LocalizerConfig
     from pipemap.recorder import Explore, RecordSettings, record_run
     from pipemap.replay import FileSource, replay, score_replay
     from pipemap.replay.coverage import true_network
@@ -109,13 +122,15 @@ def run_case(case: Case, resolution_px: int, explore: str) -> Outcome:
         seed=case.seed,
         resolution_px=resolution_px,
         explore=Explore(explore),
+        alike=alike,
+        odometry_check=odometry_check,
     )
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.mcap"
         recorded = record_run(path, settings, network, __version__)
         source = FileSource(path)
-        result = replay(source)
+        result = replay(source, LocalizerConfig(odometry_check=odometry_check))
         report = score_replay(result, source, settings.threshold)
         truth = true_network(source)
     wall = time.perf_counter() - began
@@ -150,6 +165,8 @@ def run_case(case: Case, resolution_px: int, explore: str) -> Outcome:
         same,
         other,
         wall,
+        report.counts()["false_merge"],
+        report.counts()["false_new"],
     )
 
 
@@ -200,26 +217,44 @@ def cases(suite: str) -> list[Case]:
     must += [Case(f"grid:{n}x{n}") for n in (3, 4, 5)]
     must += [Case(f"random:{n}") for n in range(10, 41, 5)]
     loops = [Case(f"random:{10 + k % 21}", k) for k in range(50)]
-    return {"must": must, "loops50": loops, "all": must + loops}[suite]
+    paper = must[:7]
+    return {"must": must, "loops50": loops, "paper": paper, "all": must + loops}[suite]
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--suite", choices=["must", "loops50", "all"], default="all")
+    parser.add_argument("--suite", choices=["must", "loops50", "paper", "all"], default="all")
     parser.add_argument("--resolution", type=int, default=RESOLUTION_PX)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--explore", choices=["map", "right-hand"], default="map")
     parser.add_argument("--first", type=int, default=0, help="skip the suite's first runs")
+    parser.add_argument("--count", type=int, default=None, help="run this many at most")
+    parser.add_argument("--alike", type=float, default=0.0, help="record --alike (0)")
+    parser.add_argument(
+        "--no-odometry-check", action="store_true", help="the localizer's odometry check off"
+    )
     args = parser.parse_args()
     todo = cases(args.suite)[args.first :]
+    todo = todo if args.count is None else todo[: args.count]
     print(
         f"# bench_explore: {len(todo)} runs, {args.resolution} px, explore {args.explore}, "
-        f"{args.jobs} job(s)",
+        f"alike {args.alike:g}, odometry check "
+        f"{'off' if args.no_odometry_check else 'on'}, {args.jobs} job(s)",
         flush=True,
     )
     outcomes: list[Outcome] = []
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = [pool.submit(run_case, c, args.resolution, args.explore) for c in todo]
+        futures = [
+            pool.submit(
+                run_case,
+                c,
+                args.resolution,
+                args.explore,
+                args.alike,
+                not args.no_odometry_check,
+            )
+            for c in todo
+        ]
         for future in futures:
             outcome = future.result()
             outcomes.append(outcome)
@@ -254,6 +289,10 @@ def _summary(outcomes: list[Outcome]) -> None:
         f"odometry: same junction at most {max(o.odometry_same_m for o in outcomes):.2f} m apart, "
         f"different junctions of one kind at least "
         f"{min(o.odometry_other_m for o in outcomes):.2f} m"
+    )
+    print(
+        f"# decisions wrong: {sum(o.false_merges for o in outcomes)} false merges, "
+        f"{sum(o.false_new for o in outcomes)} false new junctions"
     )
     print(f"# wall time: {sum(o.wall_s for o in outcomes):.0f} s in all")
 

@@ -69,6 +69,22 @@ class LocalizerConfig:
     #: ``port_tolerance_rad`` (see :mod:`localizer.ports`). Not in the paper.
     port_check: bool = True
     port_tolerance_rad: float = PORT_TOLERANCE_RAD
+    #: With the visit's dead reckoning given: a known junction is a candidate only if
+    #: the robot is within ``odometry_radius_m`` plus ``odometry_drift_per_m`` per
+    #: metre driven (at most ``odometry_limit_m``) of where it was at that junction's
+    #: first visit. What appearance cannot fake: junctions that look alike
+    #: (``record --alike``) are still apart. The numbers are the explorer's odometry
+    #: check's (:class:`localizer.explore.ExploreConfig`): a revisit's dead reckoning
+    #: was at most 0.39 m off after some 60 m, and the simulator's junctions are at
+    #: least 0.8 m apart. Not in the paper.
+    odometry_check: bool = True
+    odometry_radius_m: float = 0.3
+    odometry_drift_per_m: float = 0.005
+    odometry_limit_m: float = 0.6
+    #: A known visit's other candidates that passed the same checks and matched within
+    #: this of the recognised junction's similarity are named as alike
+    #: (``Decision.alike``): junctions nothing told apart.
+    alike_margin: float = 0.02
     #: The sweeps are lit by the robot's own lamp: divide every image by its own
     #: illumination estimate (:mod:`localizer.illumination`) before matching, and
     #: when the two-view fit at the NCC's rotation fails, fit again at any rotation
@@ -94,6 +110,14 @@ class LocalizerConfig:
             raise LocalizerError(
                 "verify_inliers, expected_inliers and verify_candidates must be >= 1"
             )
+        odometry = (
+            self.odometry_radius_m,
+            self.odometry_drift_per_m,
+            self.odometry_limit_m,
+            self.alike_margin,
+        )
+        if not all(math.isfinite(v) and v >= 0.0 for v in odometry):
+            raise LocalizerError(f"odometry tolerances must be finite and >= 0, got {odometry}")
         if not 0.0 < self.port_tolerance_rad < math.pi / 2.0:
             raise LocalizerError(
                 f"port tolerance must be in (0, pi/2) rad, got {self.port_tolerance_rad}"

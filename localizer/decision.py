@@ -88,6 +88,12 @@ class Decision:
     ``port_residual_rad`` the largest misfit of a known visit's exits with its
     ports, and ``rejected`` the candidates the images matched but whose ports did
     not, each with the reason.
+
+    ``alike`` are the other known junctions that a known visit could as well have
+    been: they passed every check the recognised one passed before its fit (ports,
+    odometry) and matched within ``LocalizerConfig.alike_margin`` of its similarity,
+    and the map did not expect the recognised one. The decision is then the best
+    ranked of equals, not told apart by anything: it says so rather than pass for sure.
     """
 
     node: int
@@ -103,6 +109,7 @@ class Decision:
     arrival_port: int | None = None
     port_residual_rad: float | None = None
     rejected: tuple[tuple[int, str], ...] = ()
+    alike: tuple[int, ...] = ()
 
     @property
     def rotation_rad(self) -> float | None:
@@ -133,6 +140,8 @@ class Decision:
             parts.append(f"{len(self.probes)} probes asked, {answered} answered")
         for node, why in self.rejected:
             parts.append(f"{node} rejected: {why}")
+        if self.alike:
+            parts.append(f"as alike: {', '.join(map(str, self.alike))} (nothing told them apart)")
         return "; ".join(parts)
 
 

@@ -96,6 +96,10 @@ class Localizer:
         self._features: list[StoredFeatures] = []
         self.map = TopoMap()
         self._last: Decision | None = None
+        #: Dead reckoning at each junction's first visit (``None``: not given).
+        self._positions: dict[int, tuple[float, float] | None] = {}
+        self._here: tuple[float, float] | None = None
+        self._tolerance_m = 0.0
         #: The last visit's own sweep as the matcher prepared it (lit), for whoever
         #: compares visits later (a score's pairs); ``None`` before the first.
         self.last_prepared: PreparedSet | None = None
@@ -138,6 +142,7 @@ class Localizer:
         probes: ProbeSource | None = None,
         exits_rad: Sequence[float] | None = None,
         odometer_m: float | None = None,
+        position_m: tuple[float, float] | None = None,
     ) -> Decision:
         """Decide known or new for one junction visit, and add the visit to the map.
 
@@ -146,7 +151,11 @@ class Localizer:
         ``exits_rad`` are the junction's pipes as the robot found them, relative to
         its heading during the sweep (0 ahead, positive to the left); with them the
         map gets ports. ``odometer_m`` (distance driven so far) gives edges a length.
+        ``position_m`` (dead reckoning, in the start's frame) rules out, with
+        ``odometry_check``, the known junctions too far from where they were.
         """
+        self._here = None if position_m is None else (float(position_m[0]), float(position_m[1]))
+        self._tolerance_m = self._odometry_tolerance_m(odometer_m)
         timer = PhaseClock(self._clock)
         exits = None if exits_rad is None else tuple(float(e) for e in exits_rad)
         query = self._lit(query)
@@ -183,6 +192,7 @@ class Localizer:
         stored = None
         ports: PortMatch | None = None
         rejected: list[tuple[int, str]] = []
+        alike: tuple[int, ...] = ()
         timer.lap("ncc")
         if self.config.two_view:
             stored = stored_features(matched, self.config.two_view_config)
@@ -192,7 +202,7 @@ class Localizer:
             verified = self._verified(features, matched_all, turn, exits, rejected)
             known = verified is not None
             if verified is not None:
-                best, raw_fit, ports = verified
+                best, raw_fit, ports, alike = verified
                 match = matched_all[best].turned(turn)
                 sim = match.similarity
                 fit = raw_fit.turned(turn)
@@ -227,6 +237,7 @@ class Localizer:
             exit_ports = None if ports is None else ports.exit_ports
         else:
             node = self._matcher.add(prepared)
+            self._positions[node] = self._here
             if stored is not None:
                 if matched is not query:  # a probe's: remember the visit's own sweep
                     timer.lap("map")
@@ -255,6 +266,7 @@ class Localizer:
             arrival_port=arrival,
             port_residual_rad=None if ports is None else ports.residual_rad,
             rejected=tuple(rejected),
+            alike=alike,
         )
         self._last = decision
         timer.lap("map")
@@ -318,6 +330,19 @@ class Localizer:
         self.map.new_traversal()
         self._last = None
 
+    def _odometry_tolerance_m(self, odometer_m: float | None) -> float:
+        c = self.config
+        driven = 0.0 if odometer_m is None else odometer_m
+        return min(c.odometry_radius_m + c.odometry_drift_per_m * driven, c.odometry_limit_m)
+
+    def _near(self, node: int) -> bool:
+        """Whether the robot may be at known junction ``node`` by its dead reckoning
+        (it may when either position is unknown or the check is off)."""
+        there = self._positions.get(node)
+        if not self.config.odometry_check or self._here is None or there is None:
+            return True
+        return math.dist(self._here, there) <= self._tolerance_m
+
     def _lit(self, image_set: ImageSet) -> ImageSet:
         """The set as the matcher sees it: normalised if lamp-lit."""
         return normalised(image_set, self.config.illumination) if self.config.lamp else image_set
@@ -376,7 +401,7 @@ class Localizer:
         turn: float,
         exits: tuple[float, ...] | None,
         rejected: list[tuple[int, str]],
-    ) -> tuple[int, TwoViewFit, PortMatch | None] | None:
+    ) -> tuple[int, TwoViewFit, PortMatch | None, tuple[int, ...]] | None:
         """The first of the junction the map expects (:meth:`expected_node`) and the
         best junctions (refined ones first, each by similarity) that the sweep's
         keypoints fit and whose ports the exits fit, with that fit (unturned) and the
@@ -384,11 +409,12 @@ class Localizer:
         do not go to ``rejected``."""
         exclude = self._excluded()
         # A junction whose pipes cannot line up with the exits at any turn is not the
-        # visit's (the port check would pass it over): it takes no candidate's place.
+        # visit's (the port check would pass it over), nor one the robot is too far
+        # from by odometry: neither takes a candidate's place.
         allowed = [
             i
             for i in range(len(matches))
-            if i != exclude and self._allowed_rotations(i, exits, turn) != ()
+            if i != exclude and self._allowed_rotations(i, exits, turn) != () and self._near(i)
         ]
         # Refined junctions first, then screened ones: the two scores differ in scale.
         ranked = sorted(allowed, key=lambda i: (not matches[i].refined, -matches[i].similarity, i))
@@ -411,5 +437,21 @@ class Localizer:
                 if ports is not None and not ports.agrees and self.config.port_check:
                     rejected.append((i, ports.reason))
                     continue
-                return i, fit, ports
+                return i, fit, ports, self._alike(i, expected, allowed, matches)
         return None
+
+    def _alike(
+        self, node: int, expected: int | None, allowed: list[int], matches: list[SetMatch]
+    ) -> tuple[int, ...]:
+        """The other candidates as good as ``node`` by all but its fit: as refined,
+        within ``alike_margin`` of its similarity; none when the map expected it."""
+        if node == expected:
+            return ()
+        sim = matches[node].similarity
+        return tuple(
+            j
+            for j in allowed
+            if j != node
+            and matches[j].refined == matches[node].refined
+            and abs(matches[j].similarity - sim) <= self.config.alike_margin
+        )

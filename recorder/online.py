@@ -110,20 +110,26 @@ class OnlineLocalizer:
         if isinstance(record, SweepEnd) and record.sweep.probe is None:
             self._pending[record.visit_id] = record.sweep
         elif isinstance(record, NodeExits):
-            self._decide(record.visit_id, record.exits_rad, record.odometer_m)
+            self._decide(
+                record.visit_id, record.exits_rad, record.odometer_m, (record.x_m, record.y_m)
+            )
         elif isinstance(record, NodeDeparture) and record.visit_id in self.decisions:
             self.localizer.depart(record.exit_rad)
         elif isinstance(record, PipeBlocked) and record.visit_id in self.decisions:
             self.localizer.block()
 
     def _decide(
-        self, visit_id: int, exits: tuple[float, ...] | None, odometer_m: float | None
+        self,
+        visit_id: int,
+        exits: tuple[float, ...] | None,
+        odometer_m: float | None,
+        position_m: tuple[float, float] | None = None,
     ) -> None:
         sweep = self._pending.pop(visit_id, None)
         if sweep is None:
             return
         seen = gray_set(sweep.images, self.fov_rad, sweep.camera_angle_rad, sweep.imu_tilt_rad)
-        decision = self.localizer.localize(seen, self.probes, exits, odometer_m)
+        decision = self.localizer.localize(seen, self.probes, exits, odometer_m, position_m)
         self.decisions[visit_id] = decision
         if self.on_decision is not None:
             self.on_decision(visit_id, decision)

@@ -382,7 +382,7 @@ def record_run(
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
     camera = settings.camera()
-    config = LocalizerConfig(threshold=settings.threshold)
+    config = LocalizerConfig(threshold=settings.threshold, odometry_check=settings.odometry_check)
     localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
     deposits = settings.deposits(network)  # checked before the log is opened
     mode = "wb" if overwrite else "xb"
@@ -391,9 +391,10 @@ def record_run(
         sink = _OnlineSink(writer, localizer, camera, progress, observer)
         truth = messages.network_message(network, obstacles=deposits)
         sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
+        looks = settings.looks(network)
         if progress is not None:
             progress(Progress(0, 0, 0, world_ready=False))
-        with World(network, seed=settings.seed, obstacles=deposits) as world:
+        with World(network, seed=settings.seed, obstacles=deposits, looks=looks) as world:
             if progress is not None:
                 progress(Progress(0, 0, 0))
             writer.send()  # the file is open before the run starts

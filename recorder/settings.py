@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +20,7 @@ from pipemap.recorder.online import Explore
 from pipemap.recorder.topics import FORMAT_VERSION
 from pipemap.sim.controller import ExplorerConfig
 from pipemap.sim.episode import Condition, SimConfig
+from pipemap.sim.lookalike import TYPE_TOLERANCE_RAD, LookAlike, choose_looks
 from pipemap.sim.motor_faults import MOTOR_FAULT_S, MotorFault, draw_motor_faults
 from pipemap.sim.network import Network
 from pipemap.sim.obstacles import Obstacle, place_obstacles
@@ -57,12 +59,22 @@ class RecordSettings:
     image_format: str = "png"
     #: The JPEG quality (1..100) with ``image_format="jpeg"``.
     jpeg_quality: int = 90
+    #: The fraction of junctions that take the look of another of their type, drawn
+    #: from the seed: see :mod:`sim.lookalike`. 0: every junction its own look, and
+    #: the log is as without the setting.
+    alike: float = 0.0
+    #: The online localizer's odometry check (``LocalizerConfig.odometry_check``);
+    #: off only to measure what it buys (``benchmarks/bench_explore.py``). Off, the
+    #: run metadata says so; on, the log is as without the setting.
+    odometry_check: bool = True
 
     def __post_init__(self) -> None:
         try:
             self.image_encoding()
         except ValueError as exc:
             raise InputError(str(exc)) from None
+        if not (math.isfinite(self.alike) and 0.0 <= self.alike <= 1.0):
+            raise InputError(f"--alike must be a fraction in 0..1, got {self.alike}")
         what = (
             ("--obstacles", self.obstacles, "a deposit"),
             ("--motor-faults", self.motor_faults, "a motor cut-out"),
@@ -91,6 +103,10 @@ class RecordSettings:
         """How the log stores the camera's images."""
         return ImageEncoding(self.image_format, self.jpeg_quality)
 
+    def looks(self, network: Network) -> LookAlike:
+        """Which junctions share a look (none by default)."""
+        return choose_looks(network, self.alike, self.seed)
+
     def camera(self) -> CameraSpec:
         """The camera of the run."""
         return CameraSpec(resolution_px=self.resolution_px, lamp_strength=self.lamp_strength)
@@ -102,6 +118,12 @@ class RecordSettings:
             "robot": dataclasses.asdict(RobotSpec()),
             "camera": dataclasses.asdict(camera),
         }
+        if self.alike:
+            simulator["alike"] = {
+                "fraction": self.alike,
+                "type_tolerance_rad": TYPE_TOLERANCE_RAD,
+                "groups": self.looks(network).groups(),
+            }
         if self.condition is Condition.AUTONOMOUS:
             simulator["explorer"] = dataclasses.asdict(self.explorer_config())
             # Only with deposits or cut-outs: a log without them stays as it always was.
@@ -118,6 +140,7 @@ class RecordSettings:
             simulator["placement"] = dataclasses.asdict(self.sim_config())
             simulator["placement"].pop("camera")
             simulator["placement"]["condition"] = self.condition.value
+        extra = {} if self.odometry_check else {"odometry_check": "false"}
         return {
             "format_version": FORMAT_VERSION,
             "pipemap_version": version,
@@ -136,6 +159,7 @@ class RecordSettings:
             "simulator": json.dumps(simulator, sort_keys=True, default=_json_value),
             # Only for JPEG: a PNG run's metadata stays as it always was.
             **self.image_encoding().metadata(),
+            **extra,
         }
 
     def explorer_config(self) -> ExplorerConfig:

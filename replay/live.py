@@ -168,6 +168,7 @@ class LiveView:
                 probes,
                 None if scan is None else scan.exits_rad,
                 None if scan is None else scan.odometer_m,
+                None if scan is None else scan.position_m,
             )
             self._map.add(
                 VisitDecision(

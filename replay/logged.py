@@ -142,6 +142,11 @@ class LoggedExits:
     #: events), in order, before it left by ``departure_rad``.
     blocked_rad: tuple[float, ...] = ()
 
+    @property
+    def position_m(self) -> tuple[float, float] | None:
+        """The dead reckoning logged with the exits (``None`` without them)."""
+        return None if self.exits_rad is None else (self.x_m, self.y_m)
+
 
 @dataclass
 class Sweeps:

@@ -192,12 +192,13 @@ def answer_probes(
     probes: list[LoggedSweep],
     exits_rad: tuple[float, ...] | None = None,
     odometer_m: float | None = None,
+    position_m: tuple[float, float] | None = None,
 ) -> tuple[Decision, int]:
     """``localizer``'s decision for a visit's ``images`` (and its exit scan, if
     logged), its probe requests answered from the visit's logged ``probes``; and how
     many requests the log could not answer."""
     answers = _LoggedProbes(probes)
-    decision = localizer.localize(images, answers, exits_rad, odometer_m)
+    decision = localizer.localize(images, answers, exits_rad, odometer_m, position_m)
     return decision, answers.not_in_log
 
 
@@ -300,10 +301,11 @@ class _Replay:
         scan = self.events.of(sweep.visit_id)
         exits = None if scan is None else scan.exits_rad
         odometer = None if scan is None else scan.odometer_m
+        position = None if scan is None else scan.position_m
         # The sets are made before the clock starts: the latency is the decision's.
         images, answers = sweep.images, _LoggedProbes(self.probes.pop(sweep.visit_id, []))
         start = time.perf_counter()
-        decision = localizer.localize(images, answers, exits, odometer)
+        decision = localizer.localize(images, answers, exits, odometer, position)
         latency = time.perf_counter() - start
         missing = answers.not_in_log
         if not _makes_probes(self.metadata):

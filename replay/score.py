@@ -66,6 +66,7 @@ __all__ = [
     "ScoreReport",
     "VisitScore",
     "latency_summary",
+    "look_alike_groups",
     "phase_means",
     "pair_statistics",
     "score",
@@ -162,6 +163,12 @@ class ScoreReport:
     blocked: BlockedPipes | None = None
     #: What of the truth could not be read (a line each); not part of the document.
     truth_notes: tuple[str, ...] = ()
+    #: The true junctions that share a look (``record --alike``), each group's look's
+    #: own junction first; empty when every junction looks like itself alone.
+    look_alike: tuple[tuple[str, ...], ...] = ()
+    #: The visits whose decision named other junctions as alike (``Decision.alike``):
+    #: recognised as the best ranked of junctions nothing told apart.
+    alike_visits: tuple[str, ...] = ()
 
     @property
     def map_status(self) -> str:
@@ -174,6 +181,16 @@ class ScoreReport:
         """Decisions by outcome."""
         names = ("correct_known", "correct_new", "false_merge", "false_new")
         return {n: sum(1 for v in self.visits if v.outcome == n) for n in names}
+
+    def _undecided(self) -> dict[str, Any]:
+        """The decisions made among junctions nothing told apart, and how they went."""
+        outcomes = {v.visit: v.outcome for v in self.visits}
+        right = sum(outcomes.get(v) == "correct_known" for v in self.alike_visits)
+        return {
+            "visits": list(self.alike_visits),
+            "right": right,
+            "wrong": len(self.alike_visits) - right,
+        }
 
     def document(self, with_latency: bool = True) -> dict[str, Any]:
         """The JSON document of ``pipemap score --json``. Everything but the latency
@@ -203,6 +220,8 @@ class ScoreReport:
             "coverage": None if self.coverage is None else self.coverage.document(),
             "ports_correct": self.ports_correct,
             **({} if self.blocked is None else {"blocked": self.blocked.document()}),
+            **({"look_alike": [list(g) for g in self.look_alike]} if self.look_alike else {}),
+            **({"undecided": self._undecided()} if self.alike_visits else {}),
             "visits": len(self.visits),
             "true_nodes": self.true_nodes,
             "predicted_nodes": self.predicted_nodes,
@@ -485,6 +504,24 @@ def score_replay(
         mapped_part_correct=mapped,
         blocked=blocked,
         truth_notes=tuple(truth_notes),
+        look_alike=look_alike_groups(source.run_metadata()),
+        alike_visits=tuple(visit_label(v.visit_id) for v in result.visits if v.decision.alike),
+    )
+
+
+def look_alike_groups(run: dict[str, str]) -> tuple[tuple[str, ...], ...]:
+    """The groups of true junctions that share a look, from the run metadata's
+    simulator settings (``record --alike``); none when it names none."""
+    try:
+        simulator = json.loads(run.get("simulator", "{}"))
+    except ValueError:
+        return ()
+    alike = simulator.get("alike") if isinstance(simulator, dict) else None
+    groups = alike.get("groups") if isinstance(alike, dict) else None
+    if not isinstance(groups, list):
+        return ()
+    return tuple(
+        tuple(str(label) for label in g) for g in groups if isinstance(g, list) and len(g) > 1
     )
 
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Mesh", "chamber_mesh", "half_pipe_mesh", "wall_start_m"]
+__all__ = ["Mesh", "chamber_mesh", "chamber_u_origin_rad", "half_pipe_mesh", "wall_start_m"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,6 +135,13 @@ def _open_longitudes(headings_rad: list[float]) -> tuple[float, float] | None:
         start = lo + math.remainder(h + math.pi / 2 - lo, 2 * math.pi)
         lo, hi = max(lo, start), min(hi, start + math.pi)
     return (lo, hi) if hi - lo > 1e-6 else None
+
+
+def chamber_u_origin_rad(headings_rad: list[float]) -> float | None:
+    """The longitude at texture ``u = 0`` of :func:`chamber_mesh` for the same headings
+    (in the same order), or None when there is no chamber."""
+    span = _open_longitudes(headings_rad)
+    return None if span is None else span[0]
 
 
 def chamber_mesh(

@@ -42,7 +42,8 @@ import cv2
 import numpy as np
 
 from pipemap.errors import SimError, WriteError
-from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh
+from pipemap.sim.geometry import Mesh, chamber_mesh, chamber_u_origin_rad, half_pipe_mesh
+from pipemap.sim.lookalike import LookAlike, LookTextures
 from pipemap.sim.network import Network
 from pipemap.sim.obstacles import Obstacle
 from pipemap.sim.textures import node_texture, pipe_texture
@@ -143,8 +144,11 @@ class World:
         texture_px: int = 512,
         cull: bool = True,
         obstacles: tuple[Obstacle, ...] = (),
+        looks: LookAlike | None = None,
     ) -> None:
         self.network = network
+        #: The junctions that share a look (:mod:`sim.lookalike`); none by default.
+        self.looks = looks if looks is not None else LookAlike(0.0)
         #: Deposits on the pipe floors (:mod:`sim.obstacles`): bodies the camera and
         #: the rays see, and footprints the robot cannot drive into.
         self.obstacles = tuple(obstacles)
@@ -161,7 +165,8 @@ class World:
         #: Bodies drawn by the last image (all of them when nothing was culled).
         self.drawn_bodies = 0
         try:
-            self._build(np.random.default_rng(seed), texture_px)
+            shared = LookTextures(network, self.looks, seed, texture_px)
+            self._build(np.random.default_rng(seed), texture_px, shared)
             if self.obstacles:
                 self._build_obstacles(np.random.default_rng([seed, _DEPOSIT_STREAM]))
         except BaseException:
@@ -226,8 +231,10 @@ class World:
         self.triangle_count += mesh.triangle_count
         return int(body)
 
-    def _build(self, rng: np.random.Generator, texture_px: int) -> None:
+    def _build(self, rng: np.random.Generator, texture_px: int, shared: LookTextures) -> None:
         net = self.network
+        worn = self.looks.looks
+        look_tids: dict[str, int] = {}
         circumference = math.pi * net.diameter_m
         # One generator per pipe and per node, drawn in a fixed order: a texture does
         # not change when another part of the network does.
@@ -242,11 +249,22 @@ class World:
                 length_m=length,
                 circumference_m=circumference,
             )
-            tid = self._texture(f"pipe-{pipe.a}-{pipe.b}", texture)
+            own = (
+                None
+                if pipe.a in worn and pipe.b in worn
+                else self._texture(f"pipe-{pipe.a}-{pipe.b}", texture)
+            )
             for here, there, u_range in (
                 (pipe.a, pipe.b, (0.0, 0.5)),
                 (pipe.b, pipe.a, (1.0, 0.5)),
             ):
+                tid = own
+                if here in worn:  # the half at a node that wears a shared look
+                    name, image, u_range = shared.half_pipe(here, there)
+                    if name not in look_tids:
+                        look_tids[name] = self._texture(name, image)
+                    tid = look_tids[name]
+                assert tid is not None
                 headings = net.pipe_headings(here)
                 node = net.node(here)
                 others = [h for label, h in headings.items() if label != there]
@@ -272,7 +290,11 @@ class World:
                 # twice as coarse as the pipes'. At the true scale the fine detail of the
                 # end caps washes out at 400 px: on the paper tour two different dead
                 # ends then scored 0.366, over the 0.36 threshold (0.339 as drawn).
-                texture = node_texture(nrng, texture_px, texture_px, radius_m=0.2)
+                origin = chamber_u_origin_rad(directions)
+                if node.label in worn and origin is not None:
+                    texture = shared.chamber(node.label, origin)
+                else:
+                    texture = node_texture(nrng, texture_px, texture_px, radius_m=0.2)
                 tid = self._texture(f"node-{node.label}", texture)
                 self._node_bodies[node.label].append(self._add(chamber, tid))
 

@@ -30,3 +30,24 @@ def test_it_compares_the_two_rules_and_says_where_the_time_of_each_goes() -> Non
     assert list(phases["defaults"]) == ["ncc", "keypoints", "check", "map"]
     # ORB runs only for the two-view check.
     assert phases["defaults"]["keypoints"] > 0.0 == phases["--no-two-view"]["keypoints"]
+
+
+def test_it_compares_the_defaults_with_the_odometry_check_off() -> None:
+    log = REPO / "recordings" / "random8_loops.mcap"
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "bench_score.py"),
+            str(log),
+            "--repeat",
+            "1",
+            "--against",
+            "no-odometry-check",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"defaults / --no-odometry-check \(CPU means\): \d+\.\d\dx", done.stdout)
+    assert re.search(r"^--no-odometry-check +11 decisions", done.stdout, re.MULTILINE)

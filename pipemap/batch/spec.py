@@ -20,6 +20,7 @@ a key left out takes that command's default::
     motor_faults = [0, 3]             # record --motor-faults  (0; autonomous runs only)
     tilt_deg = [0, 3]                 # record --tilt-deg      (0)
     lighting = ["lamp", "even"]       # record --lighting      (lamp)
+    alike = [0, 0.5, 1]               # record --alike         (0)
     rule = ["default", "paper"]       # score's decision rule  (default), see RULES
     threshold = [0.36]                # score --threshold      (the rule's own, 0.36)
 
@@ -77,11 +78,12 @@ GRID_KEYS = (
     "motor_faults",
     "tilt_deg",
     "lighting",
+    "alike",
     "rule",
     "threshold",
 )
 #: The keys that change the recording; the others change only the scoring.
-RECORDING_KEYS = GRID_KEYS[:12]
+RECORDING_KEYS = GRID_KEYS[:13]
 CONDITIONS = ("perfect", "noise", "active", "entrance", "autonomous")
 #: ``record --explore``: how the autonomous robot chooses its exits.
 EXPLORE_POLICIES = ("map", "right-hand")
@@ -101,6 +103,7 @@ DEFAULTS: dict[str, Any] = {
     "motor_faults": 0,
     "tilt_deg": 0.0,
     "lighting": "lamp",
+    "alike": 0.0,
     "rule": "default",
     "threshold": None,
 }
@@ -132,6 +135,7 @@ class RunPoint:
     motor_faults: int
     tilt_deg: float
     lighting: str
+    alike: float
     rule: str
     threshold: float
 
@@ -153,6 +157,7 @@ class RunPoint:
             *([f"motor{self.motor_faults}"] if self.motor_faults else []),
             *([f"tilt{self.tilt_deg!r}"] if self.tilt_deg else []),
             *([self.lighting] if self.lighting != DEFAULTS["lighting"] else []),
+            *([f"alike{self.alike!r}"] if self.alike else []),
             self.rule,
             f"t{self.threshold!r}",
         ]
@@ -185,6 +190,7 @@ class RunPoint:
             motor_faults=self.motor_faults,
             tilt_rad=math.radians(self.tilt_deg),
             lamp_strength=1.0 if self.lighting == "lamp" else 0.0,
+            alike=float(self.alike),
         )
 
     def commands(self, log: str = "run.mcap") -> tuple[str, str]:
@@ -197,7 +203,8 @@ class RunPoint:
             f"{f' --obstacles {self.obstacles}' if self.obstacles else ''}"
             f"{f' --motor-faults {self.motor_faults}' if self.motor_faults else ''}"
             f"{f' --tilt-deg {self.tilt_deg:g}' if self.tilt_deg else ''}"
-            f"{f' --lighting {self.lighting}' if self.lighting != 'lamp' else ''} -o {log}"
+            f"{f' --lighting {self.lighting}' if self.lighting != 'lamp' else ''}"
+            f"{f' --alike {self.alike:g}' if self.alike else ''} -o {log}"
         )
         score = f"{RULES[self.rule].command()} {log} --threshold {self.threshold:g} --json"
         return record, score
@@ -245,8 +252,12 @@ def _check_value(key: str, v: Any) -> str | None:
         return None
     if key == "align_sweeps":
         return None if isinstance(v, bool) else f"{v!r} is not true or false"
-    if key in ("threshold", "tilt_deg"):
-        lo, hi, what = (-1.0, 1.0, "a threshold") if key == "threshold" else (0.0, 15.0, "a tilt")
+    if key in ("threshold", "tilt_deg", "alike"):
+        lo, hi, what = {
+            "threshold": (-1.0, 1.0, "a threshold"),
+            "tilt_deg": (0.0, 15.0, "a tilt"),
+            "alike": (0.0, 1.0, "a fraction"),
+        }[key]
         ok = isinstance(v, int | float) and not isinstance(v, bool)
         if not ok or not math.isfinite(v) or not lo <= v <= hi:
             return f"{v!r} is not {what} in [{lo:g}, {hi:g}]"
@@ -369,6 +380,7 @@ def _points(where: str, grid: dict[str, list[Any]], mistakes: list[str]) -> Iter
             values["threshold"] = SCORE_THRESHOLD
         values["threshold"] = float(values["threshold"])
         values["tilt_deg"] = float(values["tilt_deg"])
+        values["alike"] = float(values["alike"])
         problems = set(_driving_problems(values, network))
         if problems:
             clashes |= problems

@@ -17,6 +17,7 @@ __all__ = [
     "add_json",
     "add_output",
     "add_verbose",
+    "alike",
     "degrees",
     "downsample",
     "fraction",
@@ -114,6 +115,7 @@ highpass = _checked(
     float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]", "0..1"
 )
 jpeg_quality = _checked(int, lambda v: 1 <= v <= 100, "JPEG quality must be 1..100", "1..100")
+alike = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "not in [0, 1]", "0..1")
 
 
 def degrees(text: str) -> float:

@@ -146,6 +146,13 @@ def add_rule_options(p: argparse.ArgumentParser) -> None:
         "not line up with its known pipes (by default such a match is passed over)",
     )
     p.add_argument(
+        "--no-odometry-check",
+        action="store_true",
+        help="let a known junction be a candidate wherever the robot's dead reckoning puts "
+        "it (by default one farther than the odometry's drift allows is not: junctions "
+        "that look alike stay apart)",
+    )
+    p.add_argument(
         "--illumination",
         choices=["auto", "lamp", "even"],
         default="auto",
@@ -158,6 +165,11 @@ def add_rule_options(p: argparse.ArgumentParser) -> None:
 def port_check(args: argparse.Namespace) -> bool:
     """``port_check`` of :class:`localizer.LocalizerConfig` from ``--no-port-check``."""
     return not getattr(args, "no_port_check", False)
+
+
+def odometry_check(args: argparse.Namespace) -> bool:
+    """``odometry_check`` of :class:`localizer.LocalizerConfig` from ``--no-odometry-check``."""
+    return not getattr(args, "no_odometry_check", False)
 
 
 def illumination_setting(args: argparse.Namespace) -> bool | None:

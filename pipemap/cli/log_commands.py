@@ -128,6 +128,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         motor_faults=args.motor_faults,
         image_format=args.image_format,
         jpeg_quality=90 if args.jpeg_quality is None else args.jpeg_quality,
+        alike=args.alike,
     )
     settings.deposits(network)  # too many for the network: an error before any work
     live = None

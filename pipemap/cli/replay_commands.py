@@ -18,6 +18,7 @@ from typing import Any, TextIO
 from pipemap.cli.localizer_options import (
     fast_config,
     illumination_setting,
+    odometry_check,
     port_check,
     two_view_settings,
 )
@@ -36,7 +37,8 @@ __all__ = [
 
 def localizer_config(args: argparse.Namespace) -> Any:
     """The localizer's settings from ``--threshold``, ``--no-active-vision``,
-    ``--allow-repeat``, ``--no-verify``, ``--no-two-view``, ``--no-port-check`` and the
+    ``--allow-repeat``, ``--no-verify``, ``--no-two-view``, ``--no-port-check``,
+    ``--no-odometry-check`` and the
     similarity options (``--downsample``, ``--zoom``, ...)."""
     from pipemap.localizer import LocalizerConfig
 
@@ -49,6 +51,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         two_view=two_view,
         verify=verify,
         port_check=port_check(args),
+        odometry_check=odometry_check(args),
         lamp=illumination_setting(args),
     )
 
@@ -218,6 +221,19 @@ def _report_text(log: str, report: Any) -> str:
             f"truly blocked: {len(blocked['true_positives'])} right, "
             f"{len(blocked['false_blocked'])} false, {len(blocked['missed'])} missed"
             f" ({', '.join(blocked['marked']) or 'none marked'})"
+        )
+    if "look_alike" in doc:
+        groups = doc["look_alike"]
+        lines.append(
+            f"look-alike  {sum(len(g) for g in groups)} junctions share {len(groups)} looks: "
+            + "; ".join("=".join(g) for g in groups)
+        )
+    if "undecided" in doc:
+        undecided = doc["undecided"]
+        lines.append(
+            f"undecided   {len(undecided['visits'])} visits recognised among junctions "
+            f"nothing told apart: {undecided['right']} right, {undecided['wrong']} wrong "
+            f"({', '.join(undecided['visits'])})"
         )
     ports = {True: "correct", False: "WRONG", None: "none (no exits in the log)"}
     latency = doc["latency_ms"]

@@ -73,6 +73,7 @@ def _clear_earlier_sweeps(target: Path) -> None:
 def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Validate, build the world, run the episode, write the sweeps, print a summary."""
     from pipemap.sim.episode import Condition, Episode, SimConfig
+    from pipemap.sim.lookalike import choose_looks
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
 
@@ -98,8 +99,9 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     _clear_earlier_sweeps(target)
     if condition is Condition.AUTONOMOUS:
         return _run_autonomous(args, network, camera, target, out, err, deposits, faults)
+    looks = choose_looks(network, args.alike, args.seed)
     with world_notice(err, args.network, network):
-        world = World(network, seed=args.seed)
+        world = World(network, seed=args.seed, looks=looks)
     with world:
         episode = Episode(world, config, start=args.start)
         localizer = None
@@ -163,6 +165,7 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
     from pipemap.localizer import Localizer, LocalizerConfig
     from pipemap.recorder.online import Explore, OnlineLocalizer, make_policy
     from pipemap.sim.controller import ExplorerConfig, RunStatus, autonomous_run
+    from pipemap.sim.lookalike import choose_looks
     from pipemap.sim.stream import NodeDeparture, NodeExits, SimRecord
     from pipemap.sim.world import World
 
@@ -181,8 +184,9 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
             n = notes[record.visit_id]
             notes[record.visit_id] = RobotNotes(n.exits_rad, record.exit_rad, n.odometer_m)
 
+    looks = choose_looks(network, args.alike, args.seed)
     with world_notice(err, args.network, network):
-        world = World(network, seed=args.seed, obstacles=deposits)
+        world = World(network, seed=args.seed, obstacles=deposits, looks=looks)
     with world:
         config = ExplorerConfig(
             images_per_sweep=args.images,

@@ -61,6 +61,15 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         "drawn from the seed (default 0: never)",
     )
     p.add_argument(
+        "--alike",
+        type=arguments.alike,
+        default=0.0,
+        metavar="F",
+        help="the fraction F (0..1) of junctions that take the look of another junction of "
+        "their type (as many pipes, the same angles), drawn from the seed; 1: a network of "
+        "identical fittings (default 0: every junction looks like itself alone)",
+    )
+    p.add_argument(
         "--images",
         type=arguments.images,
         default=6,

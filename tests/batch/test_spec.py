@@ -34,7 +34,7 @@ def test_the_grid_is_the_cartesian_product_with_record_defaults() -> None:
     assert len(spec.points) == 8 and spec.recordings() == 4
     first = spec.points[0]
     assert first == RunPoint(
-        "paper", 0, "S", "autonomous", 32, 6, True, "map", 0, 0, 0.0, "lamp", "default", 0.36
+        "paper", 0, "S", "autonomous", 32, 6, True, "map", 0, 0, 0.0, "lamp", 0.0, "default", 0.36
     )
     # network outermost, the scoring keys innermost: a recording's runs are neighbours
     assert [p.rule for p in spec.points[:2]] == ["default", "paper"]
@@ -63,6 +63,7 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
         "motor_faults": 0,
         "tilt_deg": 0.0,
         "lighting": "lamp",
+        "alike": 0.0,
         "rule": "default",
         "threshold": 0.36,
     }
@@ -71,12 +72,12 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
 
 def test_run_ids_are_stable_names_of_the_settings() -> None:
     point = RunPoint(
-        "random:8", 3, "n2", "noise", 64, 9, False, "map", 0, 0, 0.0, "lamp", "no-verify", 0.33
+        "random:8", 3, "n2", "noise", 64, 9, False, "map", 0, 0, 0.0, "lamp", 0.0, "no-verify", 0.33
     )
     # Real conditions at their defaults leave the name as it was before they were keys.
     assert point.run_id == "random8-seed3-n2-noise-64px-9img-straight-map-no-verify-t0.33"
     real = RunPoint(
-        "paper", 0, "S", "autonomous", 64, 6, True, "map", 3, 2, 2.5, "even", "paper", 0.36
+        "paper", 0, "S", "autonomous", 64, 6, True, "map", 3, 2, 2.5, "even", 0.0, "paper", 0.36
     )
     assert (
         real.run_id
@@ -117,6 +118,18 @@ def test_real_conditions_are_recording_settings_handed_to_record() -> None:
     assert "--obstacles" not in spec.points[0].commands()[0]
 
 
+def test_alike_is_a_recording_setting_handed_to_record() -> None:
+    spec = parse_spec('[grid]\nalike = [0, 0.5, 1]\nrule = ["default", "paper"]\n')
+    assert spec.recordings() == 3 and len(spec.points) == 6
+    assert spec.varying == ("alike", "rule")
+    half, full = spec.points[2], spec.points[4]
+    assert half.record_settings().alike == 0.5 and full.record_settings().alike == 1.0
+    assert spec.points[0].record_settings().alike == 0.0
+    assert half.commands()[0].endswith("--alike 0.5 -o run.mcap")
+    assert "--alike" not in spec.points[0].commands()[0]
+    assert "alike" not in spec.points[0].run_id and "alike0.5" in half.run_id
+
+
 def test_grids_are_joined_and_shared_runs_made_once() -> None:
     spec = parse_spec("[[grid]]\nseed = [0, 1]\n[[grid]]\nseed = [1, 2]\n")
     assert [p.seed for p in spec.points] == [0, 1, 2]
@@ -124,7 +137,7 @@ def test_grids_are_joined_and_shared_runs_made_once() -> None:
 
 def test_the_commands_rebuild_the_run() -> None:
     point = RunPoint(
-        "grid:3x3", 1, "S", "perfect", 96, 6, False, "map", 0, 0, 0.0, "lamp", "paper", 0.36
+        "grid:3x3", 1, "S", "perfect", 96, 6, False, "map", 0, 0, 0.0, "lamp", 0.0, "paper", 0.36
     )
     record, score = point.commands()
     assert record == (
@@ -207,6 +220,7 @@ BAD_SPECS = [
     pytest.param('[grid]\nlighting = ["dim"]\n', "unknown lighting 'dim'", id="lighting"),
     pytest.param("[grid]\ntilt_deg = [16]\n", "tilt_deg: 16 is not a tilt in [0, 15]", id="tilt"),
     pytest.param("[grid]\nobstacles = [-1]\n", "obstacles: -1 is not a whole number", id="obs"),
+    pytest.param("[grid]\nalike = [1.5]\n", "alike: 1.5 is not a fraction in [0, 1]", id="alike"),
     pytest.param(
         '[grid]\ncondition = ["perfect"]\nobstacles = [1]\n',
         "obstacles: 1 with condition 'perfect': only the autonomous robot",
