@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -205,12 +206,22 @@ class _TownBuilder:
         return True
 
 
-def _reattach(
-    builder: _TownBuilder, rng: np.random.Generator, spacing_m: float, gap_m: float
-) -> bool:
+@dataclass
+class _Repair:
+    """What the local repairs of one draw share."""
+
+    builder: _TownBuilder
+    rng: np.random.Generator
+    spacing_m: float
+    gap_m: float
+    entry: int = -1
+
+
+def _reattach(fix: _Repair) -> bool:
     """Move every node the tree could not reach (hemmed in by pipes that pass it) to a
     free spot one spacing from a reached node with room for a pipe, as a dead end;
     whether every node is then reached."""
+    builder = fix.builder
     n = len(builder.xy)
     comp = _components(builder)
     main = max(set(comp), key=lambda c: (comp.count(c), -c))
@@ -220,22 +231,16 @@ def _reattach(
             del builder.edges[builder._drop(i, w)]
     for i in stranded:
         hosts = [h for h in range(n) if comp[h] == main and len(builder.heads[h]) < 4]
-        if not _stub(builder, i, hosts, rng, spacing_m, gap_m):
+        if not _stub(fix, i, hosts):
             return False
         comp[i] = main
     return True
 
 
-def _splice(
-    builder: _TownBuilder,
-    i: int,
-    entry: int,
-    rng: np.random.Generator,
-    spacing_m: float,
-    gap_m: float,
-) -> bool:
+def _splice(fix: _Repair, i: int) -> bool:
     """Take straight node ``i`` out of its pipe (its two neighbours joined directly)
     and put it back as a dead end elsewhere; whether that fits (else nothing changes)."""
+    builder, entry = fix.builder, fix.entry
     a, b = list(builder.heads[i])
     if entry in (a, b):
         return False
@@ -249,7 +254,7 @@ def _splice(
             del builder.edges[key]
         builder.add(a, b)
         hosts = [h for h in range(len(builder.xy)) if h != i and len(builder.heads[h]) < 4]
-        if _stub(builder, i, hosts, rng, spacing_m, gap_m):
+        if _stub(fix, i, hosts):
             return True
         del builder.edges[builder._drop(a, b)]
     else:
@@ -260,17 +265,11 @@ def _splice(
     return False
 
 
-def _lend_leaf(
-    builder: _TownBuilder,
-    i: int,
-    entry: int,
-    rng: np.random.Generator,
-    spacing_m: float,
-    gap_m: float,
-) -> bool:
+def _lend_leaf(fix: _Repair, i: int) -> bool:
     """Give straight node ``i`` a third pipe: a dead end taken from elsewhere (whose
     old corner does not go straight on without it) and put beside ``i``; whether
     one fitted (else nothing changes)."""
+    builder, rng, entry = fix.builder, fix.rng, fix.entry
     leaves = [
         w
         for w in range(len(builder.xy))
@@ -279,7 +278,7 @@ def _lend_leaf(
     for leaf in (leaves[int(k)] for k in rng.permutation(len(leaves))[:64]):
         (host,) = builder.heads[leaf]
         key = builder._drop(leaf, host)
-        if not builder.straight(host) and _stub(builder, leaf, [i], rng, spacing_m, gap_m):
+        if not builder.straight(host) and _stub(fix, leaf, [i]):
             del builder.edges[key]
             return True
         del builder.edges[key]
@@ -301,16 +300,10 @@ def _components(builder: _TownBuilder) -> list[int]:
     return comp
 
 
-def _stub(
-    builder: _TownBuilder,
-    i: int,
-    hosts: list[int],
-    rng: np.random.Generator,
-    spacing_m: float,
-    gap_m: float,
-) -> bool:
+def _stub(fix: _Repair, i: int, hosts: list[int]) -> bool:
     """Move node ``i`` (no pipes) to a free spot one spacing from one of ``hosts`` and
     join them; whether a spot fitted (else ``i`` stays where it was)."""
+    builder, rng, spacing_m, gap_m = fix.builder, fix.rng, fix.spacing_m, fix.gap_m
     old = builder.xy[i]
     builder.node_grid.remove(i, old, old)
     for h in (hosts[int(k)] for k in rng.permutation(len(hosts))[:256]):
@@ -349,11 +342,13 @@ def _try_town(
         return None
     order = [candidates[int(i)] for i in rng.permutation(len(candidates))]
     builder = _TownBuilder(pts, diameter_m, cell_m=2.0 * spacing_m)
+    fix = _Repair(builder, rng, spacing_m, gap_m)
     spare = grow_tree(builder, order, n)
-    if len(builder.edges) != n - 1 and not _reattach(builder, rng, spacing_m, gap_m):
+    if len(builder.edges) != n - 1 and not _reattach(fix):
         return None
     leaves = [i for i in range(n) if len(builder.heads[i]) == 1]
     entry = leaves[int(rng.integers(len(leaves)))]
+    fix.entry = entry
     free = [(u, v) for u, v in spare if entry not in (u, v)]
     if loops:
         target, added = int(rng.integers(n // 8, n // 4 + 1)), 0
@@ -370,8 +365,8 @@ def _try_town(
                 builder.add(*extra)
             elif not (
                 any(builder.push(i, k * spacing_m) for k in _PUSHES)
-                or _splice(builder, i, entry, rng, spacing_m, gap_m)
-                or _lend_leaf(builder, i, entry, rng, spacing_m, gap_m)
+                or _splice(fix, i)
+                or _lend_leaf(fix, i)
             ):
                 return None
     if any(builder.straight(i) for i in range(n)):

@@ -66,10 +66,11 @@ def test_random_town_networks_have_loops_dead_ends_and_turning_corners(n: int, s
     assert n // 8 <= loops, "a town's mains close into loops"
 
 
-def test_town_tree_is_a_tree() -> None:
-    net = build_network("tree:300", seed=5)
-    _check_town(net, 300)
-    assert len(net.pipes) == 299
+@pytest.mark.parametrize(("n", "seed"), [(300, 5), (1000, 0)])
+def test_town_tree_is_a_tree(n: int, seed: int) -> None:
+    net = build_network(f"tree:{n}", seed=seed)
+    _check_town(net, n)
+    assert len(net.pipes) == n - 1
 
 
 def test_town_networks_are_seeded() -> None:
