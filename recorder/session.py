@@ -84,6 +84,8 @@ class Progress:
     sim_time_ns: int
     sweeps: int
     visits: int
+    #: While the world is built, before the run: (pieces built, pieces in all).
+    world_pieces: tuple[int, int] | None = None
 
 
 #: Watches a run as it is recorded: called with the records sent to the log since the
@@ -351,7 +353,14 @@ def record_run(
         sink = _OnlineSink(writer, localizer, camera, progress, observer)
         truth = messages.network_message(network, obstacles=deposits)
         sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
-        with World(network, seed=settings.seed, obstacles=deposits) as world:
+        on_build = None
+        if progress is not None:
+            report = progress
+
+            def on_build(built: int, pieces: int) -> None:
+                report(Progress(0, 0, 0, world_pieces=(built, pieces)))
+
+        with World(network, seed=settings.seed, obstacles=deposits, on_build=on_build) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
                 explorer = settings.explorer_config()

@@ -13,6 +13,7 @@ import json
 import math
 import signal
 import sys
+import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from types import FrameType
@@ -44,11 +45,23 @@ def _interrupt_once() -> Callable[[], None]:
     return restore
 
 
+#: A world that takes longer than this to build says how far it has come.
+_QUIET_BUILD_S = 2.0
+
+
 def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
     if not err.isatty():
         return None
+    started: list[float] = []
 
     def show(p: Any) -> None:
+        if p.world_pieces is not None:
+            built, pieces = p.world_pieces
+            started[:] = started or [time.monotonic()]
+            if time.monotonic() - started[0] >= _QUIET_BUILD_S:
+                err.write(f"\rbuilding the world: {built}/{pieces} pipes and nodes ")
+                err.flush()
+            return
         err.write(
             f"\rrecording: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
             f"{p.visits} node visits "
