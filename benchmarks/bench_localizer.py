@@ -104,20 +104,34 @@ def resized(image_set: ImageSet, px: int) -> ImageSet:
     return ImageSet(np.rint(np.stack(images)), fov_rad=image_set.fov_rad)
 
 
+#: Distractors drawn afresh; a larger database repeats them (see ``_distractor_localizer``).
+UNIQUE_DISTRACTORS = 1000
+
+
 def _distractor_localizer(
     queries: list[ImageSet], size: int, rng: np.random.Generator, lamp: bool = False
 ) -> tuple[Localizer, list[StoredFeatures]]:
     """A localizer that knows ``size`` distractors, seeded as the localizer itself
     does for a new junction (prepare once, keypoints once) without deciding each;
     and the distractors' keypoints. With ``lamp``, as a lamp-lit camera's localizer
-    sees them: each divided by its illumination first."""
+    sees them: each divided by its illumination first. Beyond
+    ``UNIQUE_DISTRACTORS`` the distractors repeat in order (each repeat is a junction
+    of its own to the localizer, with its own screening rows and map node): drawing
+    and preparing 10 000 would take this machine most of an hour."""
     localizer = Localizer(LocalizerConfig(lamp=lamp))
-    for _ in range(size):
-        distractor = augmented_set(queries, rng)
-        if lamp:
-            distractor = normalised(distractor, localizer.config.illumination)
-        localizer._matcher.add(localizer._matcher.prepare(distractor))
-        localizer._features.append(stored_features(distractor, localizer.config.two_view_config))
+    drawn: list[tuple[object, StoredFeatures]] = []
+    for k in range(size):
+        if k < UNIQUE_DISTRACTORS:
+            distractor = augmented_set(queries, rng)
+            if lamp:
+                distractor = normalised(distractor, localizer.config.illumination)
+            config = localizer.config.two_view_config
+            drawn.append(
+                (localizer._matcher.prepare(distractor), stored_features(distractor, config))
+            )
+        prepared, features = drawn[k % UNIQUE_DISTRACTORS]
+        localizer._matcher.add(prepared)  # type: ignore[arg-type]
+        localizer._features.append(features)
         localizer.map.visit(len(localizer._features) - 1)
     return localizer, list(localizer._features)
 
@@ -134,6 +148,7 @@ def _forget_after(localizer: Localizer, count: int, saved: TopoMap) -> None:
     only grows by appending, so truncating it is exact)."""
     matcher = localizer._matcher
     del matcher._sets[count:]
+    matcher._index.truncate(count)
     for key in [k for k in matcher._fine_cache if k >= count]:
         del matcher._fine_cache[key]
     del localizer._features[count:]
@@ -298,7 +313,7 @@ def main() -> int:
         names = sorted(p.name for p in args.sets.iterdir() if p.is_dir())
         sets = {n: load_image_set(args.sets / n) for n in names}
         sizes = (
-            [10, 100, 1000]
+            [10, 100, 1000, 10000]
             if args.sizes == "1,10,100,1000"
             else [int(x) for x in args.sizes.split(",")]
         )
