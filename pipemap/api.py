@@ -205,6 +205,7 @@ def record(
     from pipemap import __version__
     from pipemap.recorder import record_run
     from pipemap.sim.network import build_network
+    from pipemap.sim.world_budget import check_world_fits
 
     target = Path(path)
     if target.is_dir():
@@ -214,4 +215,5 @@ def record(
     if not target.parent.is_dir():
         raise InputError(f"{target}: folder {target.parent} does not exist")
     network = build_network(settings.network, seed=settings.seed)
+    check_world_fits(network, settings.network)
     return record_run(target, settings, network, __version__, progress, overwrite)

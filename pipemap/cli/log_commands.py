@@ -102,10 +102,12 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from pipemap.recorder import RecordSettings, record_run
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
+    from pipemap.sim.world_budget import check_world_fits
 
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
+    check_world_fits(network, args.network)
     if args.start is not None and args.start not in network.labels:
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
