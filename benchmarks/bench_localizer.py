@@ -5,7 +5,7 @@ Prints, on one core (BLAS and FFT threads pinned to 1 before numpy loads):
 1. per-pair time of the reference and of the fast path at full resolution;
 2. agreement of the fast path with the reference over every pair of the shared
    sets (image shift, known/unknown decision, similarity, rotation);
-3. per-decision latency against databases of 1, 10, 100 and 1000 known junctions,
+3. per-decision latency against databases of 1, 10, 100, 1000 and 10 000 known junctions,
    synthetic ones made from augmented copies of the shared images;
 4. memory kept per known junction;
 
@@ -14,7 +14,8 @@ Prints, on one core (BLAS and FFT threads pinned to 1 before numpy loads):
 Usage: ``python benchmarks/bench_localizer.py [--sets DIR] [--reference-pairs K]
 [--write-reference FILE]``, or ``--json [--repeat N]`` for the decision benchmark
 alone: the shared sets at 400 px as queries, decided at the defaults (two-view check
-included) by a localizer that knows 10, 100 and 1000 junctions (augmented copies),
+included) by a localizer that knows 10, 100, 1000 and 10 000 junctions (augmented
+copies; the 10 000 repeat the first 1000; ``--no-index`` screens every one of them),
 one core; wall and CPU time per decision (the median over queries of each query's
 quickest of N tries, 5 by default), the same with the refinement cache emptied
 before each try (``decision_cold_ms``), and the memory kept per known junction (also as
@@ -104,20 +105,34 @@ def resized(image_set: ImageSet, px: int) -> ImageSet:
     return ImageSet(np.rint(np.stack(images)), fov_rad=image_set.fov_rad)
 
 
+#: Distractors drawn afresh; a larger database repeats them (see ``_distractor_localizer``).
+UNIQUE_DISTRACTORS = 1000
+
+
 def _distractor_localizer(
     queries: list[ImageSet], size: int, rng: np.random.Generator, lamp: bool = False
 ) -> tuple[Localizer, list[StoredFeatures]]:
     """A localizer that knows ``size`` distractors, seeded as the localizer itself
     does for a new junction (prepare once, keypoints once) without deciding each;
     and the distractors' keypoints. With ``lamp``, as a lamp-lit camera's localizer
-    sees them: each divided by its illumination first."""
+    sees them: each divided by its illumination first. Beyond
+    ``UNIQUE_DISTRACTORS`` the distractors repeat in order (each repeat is a junction
+    of its own to the localizer, with its own screening rows and map node): drawing
+    and preparing 10 000 would take this machine most of an hour."""
     localizer = Localizer(LocalizerConfig(lamp=lamp))
-    for _ in range(size):
-        distractor = augmented_set(queries, rng)
-        if lamp:
-            distractor = normalised(distractor, localizer.config.illumination)
-        localizer._matcher.add(localizer._matcher.prepare(distractor))
-        localizer._features.append(stored_features(distractor, localizer.config.two_view_config))
+    drawn: list[tuple[object, StoredFeatures]] = []
+    for k in range(size):
+        if k < UNIQUE_DISTRACTORS:
+            distractor = augmented_set(queries, rng)
+            if lamp:
+                distractor = normalised(distractor, localizer.config.illumination)
+            config = localizer.config.two_view_config
+            drawn.append(
+                (localizer._matcher.prepare(distractor), stored_features(distractor, config))
+            )
+        prepared, features = drawn[k % UNIQUE_DISTRACTORS]
+        localizer._matcher.add(prepared)  # type: ignore[arg-type]
+        localizer._features.append(features)
         localizer.map.visit(len(localizer._features) - 1)
     return localizer, list(localizer._features)
 
@@ -134,6 +149,7 @@ def _forget_after(localizer: Localizer, count: int, saved: TopoMap) -> None:
     only grows by appending, so truncating it is exact)."""
     matcher = localizer._matcher
     del matcher._sets[count:]
+    matcher._index.truncate(count)
     for key in [k for k in matcher._fine_cache if k >= count]:
         del matcher._fine_cache[key]
     del localizer._features[count:]
@@ -141,7 +157,12 @@ def _forget_after(localizer: Localizer, count: int, saved: TopoMap) -> None:
 
 
 def decision_benchmark(
-    sets: dict[str, ImageSet], sizes: list[int], px: int, check: bool = False, repeat: int = 1
+    sets: dict[str, ImageSet],
+    sizes: list[int],
+    px: int,
+    check: bool = False,
+    repeat: int = 1,
+    index: bool = True,
 ) -> dict:  # type: ignore[type-arg]
     """Decisions at the defaults against databases of ``sizes`` known junctions.
 
@@ -173,6 +194,8 @@ def decision_benchmark(
     memory = 0.0
     for size in sizes:
         localizer, distractors = _distractor_localizer(queries, size, rng)
+        if not index:  # every junction screened, however many (as below INDEX_ABOVE)
+            localizer._matcher.index_above = sys.maxsize
         saved = copy.deepcopy(localizer.map)
         walls, cpus, colds = [], [], []
         for query in queries:
@@ -226,6 +249,7 @@ def decision_benchmark(
         ),
         "refine_cache_kib": round(cache, 1),
         "two_view": True,
+        "index": index,
         "queries": len(queries),
         "repeat": repeat,
         "known": known,
@@ -288,6 +312,11 @@ def main() -> int:
         help="with --json: decide each query N times, keep its best (5)",
     )
     parser.add_argument(
+        "--no-index",
+        action="store_true",
+        help="with --json: screen every known junction, however many (no shortlist)",
+    )
+    parser.add_argument(
         "--check-distractors",
         action="store_true",
         help="with --json: fit every query against every distractor (minutes)",
@@ -298,11 +327,13 @@ def main() -> int:
         names = sorted(p.name for p in args.sets.iterdir() if p.is_dir())
         sets = {n: load_image_set(args.sets / n) for n in names}
         sizes = (
-            [10, 100, 1000]
+            [10, 100, 1000, 10000]
             if args.sizes == "1,10,100,1000"
             else [int(x) for x in args.sizes.split(",")]
         )
-        result = decision_benchmark(sets, sizes, args.px, args.check_distractors, args.repeat)
+        result = decision_benchmark(
+            sets, sizes, args.px, args.check_distractors, args.repeat, not args.no_index
+        )
         result["allocator_set_up"] = allocator_set_up
         print(json.dumps(result, indent=2))
         return 0

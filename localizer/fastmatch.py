@@ -41,6 +41,7 @@ import numpy as np
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.index import INDEX_ABOVE, SHORTLIST, DescriptorIndex, descriptor
 from pipemap.localizer.prepared import (
     FastConfig,
     PreparedSet,
@@ -82,6 +83,11 @@ class FastMatcher:
         self._inv_window_norm: np.ndarray | None = None  # (D, N*M, Wc)
         #: Refinement spectra of the last few refined known sets, rebuilt on demand.
         self._fine_cache: OrderedDict[int, PreparedSet] = OrderedDict()
+        #: Descriptors of the known sets (:mod:`localizer.index`): above
+        #: ``index_above`` known sets, only ``shortlist`` of them are screened.
+        self._index = DescriptorIndex()
+        self.index_above = INDEX_ABOVE
+        self.shortlist = SHORTLIST
         # scipy.fft is imported here, not at the first sweep: a robot's first decision
         # would otherwise wait 0.2-0.3 s for it (the import's cost, on this machine).
         _fft()
@@ -124,6 +130,7 @@ class FastMatcher:
             self._inv_window_norm = _grown(self._inv_window_norm, axis=1)
         self._image_rows[:, :, used : used + n] = prepared.image_rows
         self._inv_window_norm[:, used : used + n, :] = prepared.inv_window_norm
+        self._index.add(_descriptor_of(prepared))
         self._sets.append(_kept(prepared, keep_spectra))
         return len(self._sets) - 1
 
@@ -131,7 +138,7 @@ class FastMatcher:
         """Memory the database holds for its known sets (screening arrays as used,
         the compact refinement images, and any zoomed spectra)."""
         arrays = self._screening_arrays()
-        total = 0 if arrays is None else sum(a.nbytes for a in arrays)
+        total = self._index.nbytes() + (0 if arrays is None else sum(a.nbytes for a in arrays))
         for known in self._sets:
             if known.fine_images is not None:
                 total += known.fine_images.values.nbytes
@@ -175,19 +182,25 @@ class FastMatcher:
         used = len(self._sets) * self._sets[0].count
         return self._image_rows[:, :, :used], self._inv_window_norm[:, :used, :]
 
-    def screen(self, query: PreparedSet) -> tuple[np.ndarray, np.ndarray]:
-        """Screening peaks of every image pair against every known set.
+    def screen(
+        self, query: PreparedSet, subset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Screening peaks of every image pair against every known set (or the known
+        sets of ``subset``, ascending indices).
 
         Returns peak NCC and peak column shift (full-resolution px), both of shape
         ``(M, N, N)``: entry ``[i, j, m]`` is image j of the query against image m of
-        known set i.
+        known set i (the i-th of ``subset``).
         """
         self._check(query)
         n = query.count
         arrays = self._screening_arrays()
-        if arrays is None:
+        if arrays is None or (subset is not None and subset.size == 0):
             return np.empty((0, n, n)), np.empty((0, n, n))
         image_rows, inv_window_norm = arrays
+        if subset is not None:
+            columns = (subset[:, None] * n + np.arange(n)[None, :]).ravel()
+            image_rows, inv_window_norm = image_rows[:, :, columns], inv_window_norm[:, columns]
         total = image_rows.shape[2]
         rows = query.template_rows.shape[2]
         wd = inv_window_norm.shape[2]
@@ -218,22 +231,39 @@ class FastMatcher:
             dx_full.reshape(n, m_sets, n).transpose(1, 0, 2),
         )
 
-    def match(self, query: PreparedSet, exclude: int | None = None) -> list[SetMatch]:
+    def match(
+        self, query: PreparedSet, exclude: int | None = None, expected: Sequence[int] = ()
+    ) -> list[SetMatch]:
         """Algorithm 2 between the query (as A) and every known set (as B).
 
         The known set ``exclude`` (if any) cannot be the answer: it is screened but
-        never refined, so the refinement goes to the sets that can.
+        never refined, so the refinement goes to the sets that can. Above
+        ``index_above`` known sets only the ``shortlist`` nearest by descriptor and
+        the ``expected`` ones are screened; the others get :data:`UNSCREENED`.
         """
-        peaks, shifts = self.screen(query)
+        subset = None
+        if len(self._sets) > self.index_above:
+            subset = self._index.nearest(_descriptor_of(query), self.shortlist, expected)
+        peaks, shifts = self.screen(query, subset)
         if peaks.shape[0] == 0:
             return []
-        scores = _offset_scores(peaks)  # (M, N)
-        baselines = [(query.baseline + known.baseline) / 2.0 for known in self._sets]
+        ids = list(range(len(self._sets))) if subset is None else subset.tolist()
+        scores = _offset_scores(peaks)  # (M, N), row r for known set ids[r]
+        baselines = [(query.baseline + self._sets[i].baseline) / 2.0 for i in ids]
         # Rotations between the robots' headings, not between the sweeps' cameras.
-        turns = [query.camera_angle_rad - known.camera_angle_rad for known in self._sets]
-        matches = _screened_matches(scores, shifts, query.fov_rad, query.width_px, baselines, turns)
+        turns = [query.camera_angle_rad - self._sets[i].camera_angle_rad for i in ids]
+        screened = _screened_matches(
+            scores, shifts, query.fov_rad, query.width_px, baselines, turns
+        )
+        if subset is None:
+            matches = screened
+        else:
+            matches = [UNSCREENED] * len(self._sets)
+            for r, i in enumerate(ids):
+                matches[i] = screened[r]
+        row = {i: r for r, i in enumerate(ids)}
         order = sorted(
-            (i for i in range(len(matches)) if i != exclude),
+            (i for i in ids if i != exclude),
             key=lambda i: (-matches[i].similarity, i),
         )
         n = query.count
@@ -244,7 +274,7 @@ class FastMatcher:
         blocks = [
             (i, int(k))
             for rank, i in enumerate(order[: self.config.refine_candidates])
-            for k in np.argsort(-scores[i], kind="stable")[
+            for k in np.argsort(-scores[row[i]], kind="stable")[
                 : n_offsets if rank == 0 else n_runner_up
             ]
         ]
@@ -264,11 +294,27 @@ class FastMatcher:
                     peak_ncc[j, (j + k) % n] = values[b]
                     peak_dx[j, (j + k) % n] = columns[b] * (fine.full_width_px / fine.width)
             refined = best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
-            matches[i] = replace(refined, similarity=refined.similarity - baselines[i]).turned(
-                turns[i]
+            matches[i] = replace(refined, similarity=refined.similarity - baselines[row[i]]).turned(
+                turns[row[i]]
             )
         return matches
 
+
+def _descriptor_of(prepared: PreparedSet) -> np.ndarray:
+    """The index's descriptor of a set, from its quarter-scale refinement images."""
+    assert prepared.fine_images is not None  # every prepared set has them
+    return descriptor(prepared.fine_images.images(), prepared.fov_rad)
+
+
+#: The match of a known set the index left out of the screen: lower than any score.
+UNSCREENED = SetMatch(
+    similarity=-2.0,
+    image_shift=0,
+    pixel_shift=0.0,
+    rotation_rad=0.0,
+    rotation_pinhole_rad=0.0,
+    refined=False,
+)
 
 #: Known sets whose refinement spectra a matcher keeps at hand.
 _FINE_CACHE = 8

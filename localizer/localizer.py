@@ -122,7 +122,7 @@ class Localizer:
         self, prepared: PreparedSet
     ) -> tuple[list[SetMatch], int | None, float, float | None]:
         exclude = self._excluded()
-        matches = self._matcher.match(prepared, exclude)
+        matches = self._matcher.match(prepared, exclude, self._expected_nodes())
         best, sim, margin = best_candidate(matches, exclude)
         return matches, best, sim, margin
 
@@ -292,6 +292,20 @@ class Localizer:
             key=lambda i: (-matches[i].similarity, i),
         )
         return [best, *others][: self.config.verify_candidates]
+
+    def _expected_nodes(self) -> list[int]:
+        """The junctions the map puts near the robot: the one it expects next and the
+        neighbours of the last one (screened whatever the index ranks them)."""
+        previous = self.map.previous
+        if previous is None:
+            return []
+        expected = self.expected_node()
+        near = []
+        for port in range(len(self.map.ports(previous) or ())):
+            edge = self.map.edge_at(previous, port)
+            if edge is not None:
+                near.append(edge.other(previous, port)[0])
+        return ([] if expected is None else [expected]) + near
 
     def expected_node(self) -> int | None:
         """The junction the map says the robot is coming to: the far end of the edge

@@ -340,9 +340,11 @@ def record(
     from pipemap import __version__
     from pipemap.recorder import record_run
     from pipemap.sim.network import build_network
+    from pipemap.sim.world_budget import check_world_fits
 
     target = _new_file(path, overwrite)
     network = build_network(settings.network, seed=settings.seed)
+    check_world_fits(network, settings.network)
     return record_run(target, settings, network, __version__, progress, overwrite, observer, inline)
 
 

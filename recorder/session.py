@@ -88,14 +88,14 @@ PLACED_ROBOT_STREAM = 21
 
 @dataclass(frozen=True)
 class Progress:
-    """How far a recording has come. Reported before the world is built
-    (``world_ready`` false: a large network's takes a minute), once it is built, and
-    at the end of every sweep."""
+    """How far a recording has come: as the world is built (``world_pieces``: a large
+    network's takes a minute), and at the end of every sweep."""
 
     sim_time_ns: int
     sweeps: int
     visits: int
-    world_ready: bool = True
+    #: While the world is built, before the run: (pieces built, pieces in all).
+    world_pieces: tuple[int, int] | None = None
 
 
 #: Watches a run as it is recorded: called with the records sent to the log since the
@@ -392,11 +392,16 @@ def record_run(
         truth = messages.network_message(network, obstacles=deposits)
         sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
         looks = settings.looks(network)
+        on_build = None
         if progress is not None:
-            progress(Progress(0, 0, 0, world_ready=False))
-        with World(network, seed=settings.seed, obstacles=deposits, looks=looks) as world:
-            if progress is not None:
-                progress(Progress(0, 0, 0))
+            report = progress
+
+            def on_build(built: int, pieces: int) -> None:
+                report(Progress(0, 0, 0, world_pieces=(built, pieces)))
+
+        with World(
+            network, seed=settings.seed, obstacles=deposits, looks=looks, on_build=on_build
+        ) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
                 explorer = settings.explorer_config()

@@ -25,6 +25,7 @@ from pipemap.sim.network_model import (
 )
 from pipemap.sim.planar import point_segment_distance_m, segments_touch, wrap_rad
 from pipemap.sim.random_layout import random_network
+from pipemap.sim.town_layout import TOWN_ABOVE, town_network
 
 __all__ = [
     "Node",
@@ -34,6 +35,7 @@ __all__ = [
     "build_network",
     "wrap_rad",
     "MIN_JUNCTION_ANGLE_RAD",
+    "MAX_NODES",
     "MIN_PIPE_DIAMETERS",
     "STRAIGHT_TOLERANCE_RAD",
     "point_segment_distance_m",
@@ -64,6 +66,10 @@ def _grid(rows: int, cols: int, spacing_m: float) -> Network:
     return Network(tuple(nodes), tuple(pipes), entry="S")
 
 
+#: The most nodes a preset network may have: a town's worth. Larger specs are refused
+#: before anything is drawn or built.
+MAX_NODES = 5000
+
 _SPEC = re.compile(r"^(?:(paper)|grid:(\d+)x(\d+)|(random|tree):(\d+))$")
 
 
@@ -75,7 +81,8 @@ def build_network(spec: str, seed: int = 0, spacing_m: float = 1.0) -> Network:
     the entry ``S`` one spacing below ``r0c0``. ``random:N`` (with loops) and
     ``tree:N`` (without) are N-node layouts drawn from ``seed``, pipes about
     ``spacing_m`` long, entry ``S`` and other nodes ``n1``, ``n2``, ...; the same spec
-    and seed give the same network.
+    and seed give the same network. Above 100 nodes they are drawn as town networks
+    (:mod:`sim.town_layout`); a spec of more than :data:`MAX_NODES` nodes is refused.
     """
     m = _SPEC.match(spec.strip()) if isinstance(spec, str) else None
     if m is None:
@@ -90,9 +97,20 @@ def build_network(spec: str, seed: int = 0, spacing_m: float = 1.0) -> Network:
         rows, cols = int(m.group(2)), int(m.group(3))
         if rows < 2 or cols < 2:
             raise SimError(f"network spec {spec!r}: a grid needs at least 2 rows and 2 columns")
+        _check_size(spec, rows * cols + 1)
         return _grid(rows, cols, spacing_m)
     kind, n = m.group(4), int(m.group(5))
     least = 3 if kind == "random" else 2
     if n < least:
         raise SimError(f"network spec {spec!r}: {kind} needs at least {least} nodes")
+    _check_size(spec, n)
+    if n > TOWN_ABOVE:
+        return town_network(spec, n, seed, spacing_m, loops=kind == "random")
     return random_network(spec, n, seed, spacing_m, loops=kind == "random")
+
+
+def _check_size(spec: str, n: int) -> None:
+    if n > MAX_NODES:
+        raise SimError(
+            f"network spec {spec!r}: {n} nodes, more than the {MAX_NODES} a world is built for"
+        )

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 import networkx as nx
+import numpy as np
 
 from pipemap.errors import SimError
 from pipemap.sim.planar import EPS, heading_rad, point_segment_distance_m, segments_touch
@@ -80,6 +81,34 @@ def _smallest_gap(headings: Mapping[str, float]) -> tuple[float, str, str]:
         if gap < best[0]:
             best = (gap, label, next_label)
     return best
+
+
+def _pipe_boxes(pipes: tuple[Pipe, ...], xy: Mapping[str, tuple[float, float]]) -> np.ndarray:
+    """Each pipe's bounding box as a row ``(xmin, ymin, xmax, ymax)``."""
+    ends = np.array([(*xy[p.a], *xy[p.b]) for p in pipes], dtype=np.float64).reshape(-1, 4)
+    return np.column_stack(
+        (
+            np.minimum(ends[:, 0], ends[:, 2]),
+            np.minimum(ends[:, 1], ends[:, 3]),
+            np.maximum(ends[:, 0], ends[:, 2]),
+            np.maximum(ends[:, 1], ends[:, 3]),
+        )
+    )
+
+
+def _overlapping(box: np.ndarray, boxes: np.ndarray, margin_m: float, start: int) -> list[int]:
+    """Indices from ``start`` on, in order, of the boxes within ``margin_m`` (plus the
+    tolerance) of ``box``: the only pipes a geometric rule can fail against, so the
+    rules stay linear in practice and name the same first fault as a full scan."""
+    reach = margin_m + 2.0 * EPS
+    rest = boxes[start:]
+    near = (
+        (rest[:, 0] <= box[2] + reach)
+        & (rest[:, 2] >= box[0] - reach)
+        & (rest[:, 1] <= box[3] + reach)
+        & (rest[:, 3] >= box[1] - reach)
+    )
+    return [start + int(k) for k in np.flatnonzero(near)]
 
 
 @dataclass(frozen=True)
@@ -168,14 +197,18 @@ class Network:
                     "that is straight pipe, not a node"
                 )
         xy = {n.label: (n.x_m, n.y_m) for n in self.nodes}
+        boxes = _pipe_boxes(self.pipes, xy)
         for i, p in enumerate(self.pipes):
-            for q in self.pipes[i + 1 :]:
+            for j in _overlapping(boxes[i], boxes, 0.0, start=i + 1):
+                q = self.pipes[j]
                 if {p.a, p.b} & {q.a, q.b}:
                     continue  # meeting at a shared node is checked by the angle rule
                 if segments_touch(xy[p.a], xy[p.b], xy[q.a], xy[q.b]):
                     raise SimError(f"pipes {p} and {q} cross or touch")
         for n in self.nodes:
-            for p in self.pipes:
+            point = np.array([n.x_m, n.y_m, n.x_m, n.y_m])
+            for j in _overlapping(point, boxes, d, start=0):
+                p = self.pipes[j]
                 if n.label in (p.a, p.b):
                     continue
                 gap_m = point_segment_distance_m(xy[n.label], xy[p.a], xy[p.b])

@@ -10,6 +10,8 @@ requirement is thrown away and drawn again; the same seed gives the same network
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable, Sequence
+from typing import Protocol
 
 import numpy as np
 from scipy.spatial import Delaunay, QhullError
@@ -105,19 +107,24 @@ def _candidate_edges(pts: np.ndarray) -> list[tuple[int, int]]:
     return sorted(found)
 
 
-def _try_random(
-    n: int, rng: np.random.Generator, spacing_m: float, loops: bool, diameter_m: float
-) -> Network | None:
-    """One draw of a random layout; ``None`` when it fails a requirement."""
-    min_gap_m = max(0.8 * spacing_m, (MIN_PIPE_DIAMETERS + 1.0) * diameter_m)
-    pts = _scatter(n, rng, min_gap_m, 1.4 * spacing_m * math.sqrt(n))
-    if pts is None:
-        return None
-    candidates = _candidate_edges(pts)
-    if not candidates:
-        return None
-    order = [candidates[int(i)] for i in rng.permutation(len(candidates))]
-    builder = _Builder(pts, diameter_m)
+def min_gap_m(spacing_m: float, diameter_m: float) -> float:
+    """Closest two drawn nodes may be."""
+    return max(0.8 * spacing_m, (MIN_PIPE_DIAMETERS + 1.0) * diameter_m)
+
+
+def side_m(n: int, spacing_m: float) -> float:
+    """Side of the square ``n`` nodes are drawn in."""
+    return 1.4 * spacing_m * math.sqrt(n)
+
+
+class _Growing(Protocol):
+    def can_add(self, u: int, v: int) -> bool: ...
+    def add(self, u: int, v: int) -> None: ...
+
+
+def grow_tree(builder: _Growing, order: list[tuple[int, int]], n: int) -> list[tuple[int, int]]:
+    """Add the pipes of ``order`` that join two parts and fit (Kruskal's order: a
+    spanning tree when nothing blocks); returns the pipes not added, in order."""
     root = list(range(n))
 
     def find(i: int) -> int:
@@ -134,6 +141,40 @@ def _try_random(
             root[ru] = rv
         else:
             spare.append((u, v))
+    return spare
+
+
+def labelled(
+    xy: Sequence[tuple[float, float]],
+    edges: Iterable[tuple[int, int]],
+    entry: int,
+    diameter_m: float,
+) -> Network | None:
+    """The network of points ``xy`` and pipes ``edges``: the entry first, then the rest
+    in drawn order, labelled by their place; ``None`` if it breaks a rule."""
+    order_nodes = [entry] + [i for i in range(len(xy)) if i != entry]
+    label = {idx: ("S" if k == 0 else f"n{k}") for k, idx in enumerate(order_nodes)}
+    nodes = tuple(Node(label[i], xy[i][0], xy[i][1]) for i in order_nodes)
+    pipes = tuple(Pipe(label[u], label[v]) for u, v in edges)
+    try:
+        return Network(nodes, pipes, entry="S", diameter_m=diameter_m)
+    except SimError:
+        return None
+
+
+def _try_random(
+    n: int, rng: np.random.Generator, spacing_m: float, loops: bool, diameter_m: float
+) -> Network | None:
+    """One draw of a random layout; ``None`` when it fails a requirement."""
+    pts = _scatter(n, rng, min_gap_m(spacing_m, diameter_m), side_m(n, spacing_m))
+    if pts is None:
+        return None
+    candidates = _candidate_edges(pts)
+    if not candidates:
+        return None
+    order = [candidates[int(i)] for i in rng.permutation(len(candidates))]
+    builder = _Builder(pts, diameter_m)
+    spare = grow_tree(builder, order, n)
     if len(builder.edges) != n - 1:
         return None
     leaves = [i for i in range(n) if len(builder.heads[i]) == 1]
@@ -154,23 +195,25 @@ def _try_random(
             h1, h2 = heads.values()
             if abs(wrap_rad(h1 - h2)) > _GEN_STRAIGHT_RAD:
                 return None
-    # Entry first, then the rest in drawn order, labelled by their place.
-    order_nodes = [entry] + [i for i in range(n) if i != entry]
-    label = {idx: ("S" if k == 0 else f"n{k}") for k, idx in enumerate(order_nodes)}
-    nodes = tuple(Node(label[i], builder.xy[i][0], builder.xy[i][1]) for i in order_nodes)
-    pipes = tuple(Pipe(label[u], label[v]) for u, v in builder.edges)
-    try:
-        return Network(nodes, pipes, entry="S", diameter_m=diameter_m)
-    except SimError:
-        return None
+    return labelled(builder.xy, builder.edges, entry, diameter_m)
 
 
 def random_network(spec: str, n: int, seed: int, spacing_m: float, loops: bool) -> Network:
     """An ``n``-node layout drawn from ``seed``, pipes about ``spacing_m`` long, with
     a few loops if ``loops``; ``spec`` names it in the error when no draw succeeds."""
+    return first_draw(spec, seed, _MAX_ATTEMPTS, _try_random, n, spacing_m, loops)
+
+
+_Draw = Callable[[int, np.random.Generator, float, bool, float], "Network | None"]
+
+
+def first_draw(
+    spec: str, seed: int, attempts: int, draw: _Draw, n: int, spacing_m: float, loops: bool
+) -> Network:
+    """The first of ``attempts`` draws from ``seed`` that gives a network."""
     rng = np.random.default_rng(seed)
-    for _ in range(_MAX_ATTEMPTS):
-        net = _try_random(n, rng, spacing_m, loops, diameter_m=0.2)
+    for _ in range(attempts):
+        net = draw(n, rng, spacing_m, loops, 0.2)
         if net is not None:
             return net
-    raise SimError(f"network spec {spec!r}: no valid layout in {_MAX_ATTEMPTS} draws")
+    raise SimError(f"network spec {spec!r}: no valid layout in {attempts} draws")

@@ -34,6 +34,7 @@ import os
 import shutil
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -145,10 +146,14 @@ class World:
         cull: bool = True,
         obstacles: tuple[Obstacle, ...] = (),
         looks: LookAlike | None = None,
+        on_build: Callable[[int, int], None] | None = None,
     ) -> None:
         self.network = network
         #: The junctions that share a look (:mod:`sim.lookalike`); none by default.
         self.looks = looks if looks is not None else LookAlike(0.0)
+        #: Called with (pieces built, pieces in all) as the world is built, a piece
+        #: being a pipe or a node: a large network takes minutes.
+        self._on_build = on_build
         #: Deposits on the pipe floors (:mod:`sim.obstacles`): bodies the camera and
         #: the rays see, and footprints the robot cannot drive into.
         self.obstacles = tuple(obstacles)
@@ -240,7 +245,10 @@ class World:
         # not change when another part of the network does.
         pipe_rngs = rng.spawn(len(net.pipes))
         node_rngs = rng.spawn(len(net.nodes))
-        for pipe, prng in zip(net.pipes, pipe_rngs, strict=True):
+        pieces = len(net.pipes) + len(net.nodes)
+        for built, (pipe, prng) in enumerate(zip(net.pipes, pipe_rngs, strict=True)):
+            if self._on_build is not None:
+                self._on_build(built, pieces)
             length = net.length_m(pipe.a, pipe.b)
             texture = pipe_texture(
                 prng,
@@ -280,7 +288,9 @@ class World:
                 self._pipe_bodies.setdefault((pipe.a, pipe.b), []).append(body)
                 self._node_bodies[pipe.a].append(body)
                 self._node_bodies[pipe.b].append(body)
-        for node, nrng in zip(net.nodes, node_rngs, strict=True):
+        for built, (node, nrng) in enumerate(zip(net.nodes, node_rngs, strict=True)):
+            if self._on_build is not None:
+                self._on_build(len(net.pipes) + built, pieces)
             # The entry is closed too: the launch pit's wall, not open air, which
             # would render as a black half-image that looks like any dark view.
             directions = list(net.pipe_headings(node.label).values())
@@ -297,6 +307,8 @@ class World:
                     texture = node_texture(nrng, texture_px, texture_px, radius_m=0.2)
                 tid = self._texture(f"node-{node.label}", texture)
                 self._node_bodies[node.label].append(self._add(chamber, tid))
+        if self._on_build is not None:
+            self._on_build(pieces, pieces)
 
     def _build_obstacles(self, rng: np.random.Generator) -> None:
         """A textured box per deposit, drawn and culled with its pipe."""

@@ -12,6 +12,7 @@ import argparse
 import json
 import math
 import sys
+import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any, TextIO
@@ -19,28 +20,33 @@ from typing import Any, TextIO
 from pipemap import __version__
 from pipemap.cli.exits import stop_signals, stopped_status
 from pipemap.cli.run_settings import check_condition_flags, explore_policy
-from pipemap.cli.slow import SlowNotice, world_notice
 from pipemap.errors import InputError, ViewerError
 
 __all__ = ["run_info", "run_record"]
 
 
-def _progress_printer(err: TextIO, notice: SlowNotice) -> Callable[[Any], None]:
-    """The recording's progress: the world's build announced when it is slow, then,
-    on a terminal, one line kept up to date."""
-    tty = err.isatty()
+#: A world that takes longer than this to build says how far it has come.
+_QUIET_BUILD_S = 2.0
+
+
+def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
+    if not err.isatty():
+        return None
+    started: list[float] = []
 
     def show(p: Any) -> None:
-        if not p.world_ready:
-            notice.start()
+        if p.world_pieces is not None:
+            built, pieces = p.world_pieces
+            started[:] = started or [time.monotonic()]
+            if time.monotonic() - started[0] >= _QUIET_BUILD_S:
+                err.write(f"\rbuilding the world: {built}/{pieces} pipes and nodes ")
+                err.flush()
             return
-        notice.stop()
-        if tty:
-            err.write(
-                f"\rrecording: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
-                f"{p.visits} node visits "
-            )
-            err.flush()
+        err.write(
+            f"\rrecording: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
+            f"{p.visits} node visits "
+        )
+        err.flush()
 
     return show
 
@@ -90,11 +96,13 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from pipemap.recorder import RecordSettings
     from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
+    from pipemap.sim.world_budget import check_world_fits
 
     check_condition_flags(args)
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
+    check_world_fits(network, args.network)
     if args.start is not None and args.start not in network.labels:
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"
@@ -136,8 +144,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         from pipemap.cli.view_command import live_view
 
         live = live_view(settings.metadata(network, __version__), args.threshold, args.connect)
-    notice = world_notice(err, args.network, network)
-    progress = _progress_printer(err, notice)
+    progress = _progress_printer(err)
     try:
         with stop_signals():
             result = api.record(target, settings, args.force, progress, live)
@@ -150,7 +157,6 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         )
         return status
     finally:
-        notice.stop()
         shown = _close_live(live, err)
     if err.isatty():
         err.write("\n")

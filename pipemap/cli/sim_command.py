@@ -76,10 +76,12 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
     from pipemap.sim.lookalike import choose_looks
     from pipemap.sim.network import build_network
     from pipemap.sim.world import CameraSpec, World
+    from pipemap.sim.world_budget import check_world_fits
 
     check_condition_flags(args)
     target = output_folder(args.save_sweeps, "--save-sweeps", args.force)
     network = build_network(args.network, seed=args.seed)
+    check_world_fits(network, args.network)
     condition = Condition(args.condition)
     if args.start is not None and args.start not in network.labels:
         raise InputError(

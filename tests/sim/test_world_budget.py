@@ -1,0 +1,61 @@
+"""A network whose world would not fit in memory is refused before anything is built."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pipemap import api
+from pipemap.errors import SimError
+from pipemap.recorder import RecordSettings
+from pipemap.sim import world_budget
+from pipemap.sim.network import build_network
+from pipemap.sim.world_budget import WORLD_MIB_PER_NODE, check_world_fits
+from tests.cli.common import run
+
+
+def test_a_world_that_fits_passes_and_one_that_does_not_is_refused(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    paper = build_network("paper")  # 7 nodes
+    monkeypatch.setattr(world_budget, "available_mib", lambda: 7 * WORLD_MIB_PER_NODE + 1)
+    check_world_fits(paper, "paper")
+    monkeypatch.setattr(world_budget, "available_mib", lambda: 7 * WORLD_MIB_PER_NODE - 1)
+    with pytest.raises(SimError, match=r"network 'paper': its world would take about 0\.2 GiB"):
+        check_world_fits(paper, "paper")
+    monkeypatch.setattr(world_budget, "available_mib", lambda: None)  # cannot tell: go on
+    check_world_fits(paper, "paper")
+
+
+def test_the_machine_says_what_it_has_available() -> None:
+    have = world_budget.available_mib()
+    assert have is None or have > 0
+
+
+@pytest.mark.parametrize("command", ["record", "sim"])
+def test_the_commands_refuse_it_with_one_line_and_write_nothing(
+    command: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    monkeypatch.setattr(world_budget, "available_mib", lambda: 100.0)
+    out = tmp_path / "out"
+    flag = ["-o", str(out)] if command == "record" else ["--save-sweeps", str(out)]
+    status, _, err = run([command, "--network", "paper", *flag], capfd)
+    assert status == 2
+    assert err.splitlines() == [
+        "pipemap: error: network 'paper': its world would take about 0.2 GiB (7 nodes at "
+        "about 30 MiB each), more than the 0.1 GiB this machine has available"
+    ]
+    assert not out.exists()
+
+
+def test_the_api_refuses_it_before_the_log_is_opened(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(world_budget, "available_mib", lambda: 100.0)
+    with pytest.raises(SimError, match="its world would take"):
+        api.record(tmp_path / "run.mcap", RecordSettings(network="paper"))
+    assert not (tmp_path / "run.mcap").exists()
