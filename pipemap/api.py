@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pipemap.errors import InputError
-from pipemap.imagesets import load_image_set, load_image_sets, read_robot_notes
+from pipemap.imagesets import lamp_lit, load_image_set, load_image_sets, read_robot_notes
 from pipemap.localizer import (
     FastConfig,
     ImageSet,
@@ -38,6 +38,7 @@ from pipemap.localizer import (
     dumps_document,
     for_pairs,
     map_document,
+    normalised,
     pairwise_matches,
     prepare,
     reference_match,
@@ -242,6 +243,7 @@ def match_image_sets(
     keep_top_fraction: float | None = None,
     every_offset: bool = False,
     reference: bool = False,
+    lamp: bool | None = None,
 ) -> dict[tuple[int, int], SetMatch]:
     """The paper's similarity (Algorithm 2) of every pair ``(i, j)``, ``i < j``, of
     image-set folders: what ``pipemap match`` prints.
@@ -251,10 +253,16 @@ def match_image_sets(
     made as it is read: 25 sets of 800 px images are 384 MB as images, about 1 MB
     each so prepared. ``reference`` compares the images themselves with the paper's
     recipe at full resolution (:func:`pipemap.localizer.reference_match`; seconds a
-    pair). Every folder is read and checked before any pair is compared.
+    pair). Every folder is read and checked before any pair is compared. ``lamp``:
+    normalise each image's illumination first, as the localizer does a lamp-lit
+    camera's (``None``: when the folders' ``sweep.txt`` say they were lamp-lit).
     """
+    lit = lamp_lit(folders) if lamp is None else lamp
+    illumination = LocalizerConfig().illumination
     if reference:
         sets = load_image_sets([str(f) for f in folders], fov_rad, keep_top_fraction)
+        if lit:
+            sets = [normalised(s, illumination) for s in sets]
         return {
             (i, j): reference_match(sets[i], sets[j])
             for i in range(len(sets))
@@ -273,6 +281,8 @@ def match_image_sets(
                 f"{image_set.height}, but {first[0]} has {first[1].count} of "
                 f"{first[1].width}x{first[1].height}"
             )
+        if lit:
+            image_set = normalised(image_set, illumination)
         prepared.append(for_pairs(prepare(image_set, fast)))
     return pairwise_matches(prepared, fast, every_offset=every_offset)
 
@@ -294,7 +304,8 @@ def map_image_sets(
     if not folders:
         raise InputError("no image-set folders given")
     sets = load_image_sets([str(f) for f in folders], fov_rad, keep_top_fraction)
-    localizer = Localizer(config)
+    # A lamp-lit camera's sweeps are normalised, as a replay does, unless said otherwise.
+    localizer = Localizer((config or LocalizerConfig()).for_camera(lamp_lit(folders)))
     visits = []
     for name, image_set in zip(folders, sets, strict=True):
         # The robot's notes of an autonomous run's sweep (``sweep.txt``) give ports.

@@ -10,7 +10,9 @@ into an image set. What the robot itself knows about a sweep goes in an optional
 to the robot's heading in radians (0, straight ahead, when the file is absent); and,
 from an autonomous run, ``exits: A,B,...`` (the pipes the exit scan found, relative
 to the robot's heading), ``departure: A`` (the pipe it left by) and
-``odometer_m: D`` (the distance it had driven), which give the map its ports.
+``odometer_m: D`` (the distance it had driven), which give the map its ports; and
+``lighting: lamp|even``, how the sweep was lit: under the robot's own lamp, ``match``
+and ``map`` normalise each image's illumination as a replay does (docs/lighting.md).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ __all__ = [
     "IMAGE_SUFFIXES",
     "RobotNotes",
     "load_image_set",
+    "lamp_lit",
     "load_image_sets",
     "read_info",
     "read_robot_notes",
@@ -152,6 +155,12 @@ class RobotNotes:
     exits_rad: tuple[float, ...] | None = None
     departure_rad: float | None = None
     odometer_m: float | None = None
+    #: ``"lamp"`` (lit by the robot's own lamp) or ``"even"``; ``None``: not said.
+    lighting: str | None = None
+
+
+#: The values of ``lighting`` in ``sweep.txt``.
+LIGHTINGS = ("lamp", "even")
 
 
 def read_robot_notes(folder: str | Path) -> RobotNotes:
@@ -167,11 +176,31 @@ def read_robot_notes(folder: str | Path) -> RobotNotes:
         exits = tuple(_number(path, "exits", t.strip()) for t in text.split(",") if t.strip())
     departure = values.get("departure")
     odometer = values.get("odometer_m")
+    lighting = values.get("lighting")
+    if lighting is not None and lighting not in LIGHTINGS:
+        raise InputError(f"{path}: lighting must be lamp or even, got {lighting!r}")
     return RobotNotes(
         exits,
         None if departure is None else _number(path, "departure", departure),
         None if odometer is None else _number(path, "odometer_m", odometer),
+        lighting,
     )
+
+
+def lamp_lit(folders: Sequence[str | Path]) -> bool:
+    """Whether the sets were lit by the robot's lamp, as their ``sweep.txt`` say:
+    true when some say ``lighting: lamp`` and none ``even`` (a folder that says
+    nothing is taken as lit as the others). Folders that disagree are refused: they
+    need ``--illumination``."""
+    said = {str(f): read_robot_notes(f).lighting for f in folders}
+    lamp = [f for f, v in said.items() if v == "lamp"]
+    even = [f for f, v in said.items() if v == "even"]
+    if lamp and even:
+        raise InputError(
+            f"{lamp[0]} is lamp-lit but {even[0]} evenly lit (sweep.txt): give "
+            "--illumination lamp or even to compare them"
+        )
+    return bool(lamp)
 
 
 def _key_values(path: Path) -> dict[str, str]:
@@ -262,6 +291,8 @@ def _write_files(
         lines.append(f"camera_angle: {camera_angle_rad!r}")
     if notes is not None and notes.exits_rad is not None:
         lines.append(f"exits: {','.join(repr(float(e)) for e in notes.exits_rad)}")
+    if notes is not None and notes.lighting is not None:
+        lines.append(f"lighting: {notes.lighting}")
     if notes is not None and notes.departure_rad is not None:
         lines.append(f"departure: {float(notes.departure_rad)!r}")
     if notes is not None and notes.odometer_m is not None:

@@ -54,6 +54,7 @@ def run_match(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
         args.keep_top,
         every_offset=args.every_offset,
         reference=args.reference,
+        lamp=illumination_setting(args),
     )
     doc = match_document(list(args.dirs), matches, args.threshold)
     if args.json:

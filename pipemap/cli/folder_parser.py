@@ -8,7 +8,12 @@ import argparse
 from typing import TYPE_CHECKING
 
 from pipemap.cli import arguments
-from pipemap.cli.localizer_options import add_rule_options, add_similarity_options, add_threshold
+from pipemap.cli.localizer_options import (
+    add_illumination,
+    add_rule_options,
+    add_similarity_options,
+    add_threshold,
+)
 
 if TYPE_CHECKING:
     from pipemap.cli.arguments import Subparsers
@@ -56,6 +61,7 @@ def add_match(sub: Subparsers) -> None:
         action="store_true",
         help="use the slow full-resolution reference instead of the fast path",
     )
+    add_illumination(p)
 
 
 def add_map(sub: Subparsers) -> None:

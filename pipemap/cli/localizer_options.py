@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 __all__ = [
     "add_rule_options",
     "add_similarity_options",
+    "add_illumination",
     "add_threshold",
     "apply_presets",
     "fast_config",
@@ -152,13 +153,19 @@ def add_rule_options(p: argparse.ArgumentParser) -> None:
         "it (by default one farther than the odometry's drift allows is not: junctions "
         "that look alike stay apart)",
     )
+    add_illumination(p)
+
+
+def add_illumination(p: argparse.ArgumentParser) -> None:
+    """``--illumination auto|lamp|even`` (:func:`illumination_setting` reads it)."""
     p.add_argument(
         "--illumination",
         choices=["auto", "lamp", "even"],
         default="auto",
         help="lamp: divide every image by its own illumination estimate before matching "
         "(sweeps lit by the robot's lamp); even: as in the paper; auto (default): lamp "
-        "when the log's camera had its lamp on, even for image folders",
+        "when the log's camera had its lamp on, or when the image folders' sweep.txt say "
+        "'lighting: lamp' (pipemap sim --save-sweeps writes it), else even",
     )
 
 

@@ -12,6 +12,7 @@ themselves).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import re
 import shutil
@@ -117,7 +118,8 @@ def run_sim(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
             folder = target / f"{visit.index + 1:04d}"
             sweep = visit.sweep
             info = _info(visit.sweep_truth.camera_pose, visit.node)
-            write_image_set(folder, sweep.images, info, sweep.camera_angle_rad)
+            lit = RobotNotes(lighting=args.lighting)
+            write_image_set(folder, sweep.images, info, sweep.camera_angle_rad, lit)
             sweeps += 1
             if localizer is not None:
                 sweeps += _localize_with_probes(localizer, visit, folder, camera.fov_rad)
@@ -211,7 +213,8 @@ def _run_autonomous(  # type: ignore[no-untyped-def]
     ):
         info = _info(truth.camera_pose, truth.node)
         folder = target / f"{index:04d}"
-        write_image_set(folder, sweep.images, info, sweep.camera_angle_rad, notes.get(index))
+        noted = dataclasses.replace(notes.get(index, RobotNotes()), lighting=args.lighting)
+        write_image_set(folder, sweep.images, info, sweep.camera_angle_rad, noted)
     visited = {s.node for s in result.sweep_truths} - {"?"}
     path = [s.node for s in result.sweep_truths]
     pipes = {frozenset((p.a, p.b)) for p in network.pipes}
