@@ -130,10 +130,17 @@ def test_a_false_new_node_every_visit_ends_the_run(tmp_path: Path) -> None:
     assert int(meta["duration_ns"]) < 600 * 10**9  # far from the one-hour watchdog
 
 
-def _images_alone(threshold: float) -> LocalizerConfig:
+def _images_alone(threshold: float, **_: object) -> LocalizerConfig:
     """The online localizer deciding by the similarity threshold alone: no two-view
-    check, and the exits not compared (a fault injected for the test)."""
-    return LocalizerConfig(threshold=threshold, two_view=False, verify=False, port_check=False)
+    check, and neither the exits nor the dead reckoning compared (a fault injected for
+    the test; the session's own settings are ignored)."""
+    return LocalizerConfig(
+        threshold=threshold,
+        two_view=False,
+        verify=False,
+        port_check=False,
+        odometry_check=False,
+    )
 
 
 def test_a_false_merge_every_visit_ends_the_run(
