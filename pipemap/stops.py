@@ -13,7 +13,17 @@ from types import FrameType
 
 from pipemap.errors import Interrupted
 
-__all__ = ["stopping_on"]
+__all__ = ["last_stop", "stopping_on"]
+
+#: The signal that last stopped a block of :func:`stopping_on` (0: none yet). Code
+#: that catches the stop where another library may have turned it into a plain
+#: ``KeyboardInterrupt`` (Ray's waits do) still learns which signal it was.
+_last_stop = [0]
+
+
+def last_stop() -> int:
+    """The number of the signal that last stopped a :func:`stopping_on` block, or 0."""
+    return _last_stop[0]
 
 
 @contextlib.contextmanager
@@ -30,6 +40,7 @@ def stopping_on(signals: tuple[signal.Signals, ...]) -> Iterator[None]:
     def stop(signum: int, frame: FrameType | None) -> None:
         for s in signals:
             signal.signal(s, signal.SIG_IGN)
+        _last_stop[0] = signum
         raise Interrupted(signum)
 
     for s in signals:

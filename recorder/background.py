@@ -216,7 +216,10 @@ class BackgroundWriter(FinishesOnExit):
         os.close(replies_write)
         self._records = os.fdopen(records_write, "wb")
         self._replies = os.fdopen(replies_read, "rb")
-        _send(self._records, dict(run_metadata))
+        try:
+            _send(self._records, dict(run_metadata))
+        except OSError:  # a broken pipe: the writer ended before it read the settings
+            raise self._gone() from None
         self._batch: list[LogRecord] = []
         self._ready = False
         self._finished = False
@@ -243,17 +246,21 @@ class BackgroundWriter(FinishesOnExit):
         try:
             kind, detail = _receive(self._replies)
         except (EOFError, OSError):
-            code = self._process.wait()
-            if code < 0:
-                try:
-                    name = signal.Signals(-code).name
-                except ValueError:
-                    name = f"signal {-code}"
-                raise self._crashed(f"the log writer process was killed ({name})") from None
-            raise self._crashed(f"the log writer process died (exit status {code})") from None
+            raise self._gone() from None
         if kind == "failed":
             raise self._crashed(str(detail))
         return str(kind), detail
+
+    def _gone(self) -> WriteError:
+        """The error of a writer process that ended unasked (killed, or died)."""
+        code = self._process.wait()
+        if code < 0:
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = f"signal {-code}"
+            return self._crashed(f"the log writer process was killed ({name})")
+        return self._crashed(f"the log writer process died (exit status {code})")
 
     def _close(self) -> None:
         for stream in (self._records, self._replies):

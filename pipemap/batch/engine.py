@@ -41,6 +41,7 @@ from pipemap.batch.run import run_recording
 from pipemap.batch.signals import held_signals, terminate_as_interrupt
 from pipemap.batch.spec import BatchSpec, RunPoint
 from pipemap.errors import InputError, Interrupted
+from pipemap.stops import last_stop
 
 __all__ = [
     "BatchEvent",
@@ -462,7 +463,7 @@ def run_batch(
                     else:
                         finished(points, outcome, "")
         except KeyboardInterrupt as exc:
-            summary.stop_signal = exc.signum if isinstance(exc, Interrupted) else 0
+            summary.stop_signal = exc.signum if isinstance(exc, Interrupted) else last_stop()
             # Not ray.cancel: cancelling a task as it completes can abort this process
             # (a Ray core check, seen with Ray 2.60). Shutting down ends the running
             # tasks (a cluster ends a driver's tasks when the driver leaves).
