@@ -432,8 +432,12 @@ def export_geojson(
     """Replay ``log`` and write its map as GeoJSON for GIS tools: junctions as points
     placed by the robot's dead reckoning, pipes as lines with their ports and driven
     lengths, in a local metric frame the file names (:mod:`pipemap.replay.geojson`).
+    ``log`` may instead be a map document's path (``.json``, as ``pipemap replay -o``
+    writes it): its junctions are then placed by chaining its ports and pipe lengths.
     Returns the features written."""
-    from pipemap.replay.geojson import write_geojson
+    from pipemap.replay.geojson import read_map_document, write_geojson
 
+    if isinstance(log, str | Path) and Path(log).suffix == ".json":
+        return write_geojson(read_map_document(log), output, Path(log).stem)
     name = Path(log).stem if isinstance(log, str | Path) else "pipemap"
     return write_geojson(replay(log, config), output, name)

@@ -88,6 +88,13 @@ class BagSpec:
     node_topic: str = "/pipemap/node"
     run_topic: str = "/pipemap/run"
     rosout_topic: str = "/rosout"
+    # Exits from the rangers, for a bag without exit scans on node_topic.
+    #: A range reading beyond this sees an opening (a pipe), nearer a wall.
+    exit_open_m: float = 0.25
+    #: Readings from a sweep's first image to this long after its last are its scan.
+    exit_scan_s: float = 2.0
+    #: The left ranger looks this far left of the front one, the right one as far right.
+    range_side_deg: float = 90.0
 
     def optional_topics(self) -> dict[str, str]:
         """Each optional topic and the type it must carry ("" topics left out)."""

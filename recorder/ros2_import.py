@@ -39,6 +39,7 @@ from pipemap.recorder.ros2_contract import (
     BagSpec,
     MsgType,
 )
+from pipemap.recorder.ros2_exits import VisitWindow, derived_exits
 from pipemap.recorder.ros2_sensors import (
     Latest,
     controller_states,
@@ -263,7 +264,7 @@ def import_bag(
             f"short after {len(lost.images)} image(s); dropped"
         )
     _sweep_writes(sweeps, spec, writes, result)
-    _sensor_writes(by_topic, spec, writes, result)
+    _sensor_writes(by_topic, spec, writes, result, sweeps)
     run = _run_metadata(by_topic.get(spec.run_topic, []), path, spec, version)
     _write(Path(output), run, writes, result)
     return result
@@ -394,6 +395,7 @@ def _sensor_writes(
     spec: BagSpec,
     writes: list[tuple[int, str, Any]],
     result: ImportResult,
+    sweeps: list[_Sweep],
 ) -> None:
     fronts = by_topic.get(spec.range_front_topic, [])
     if fronts:
@@ -412,10 +414,41 @@ def _sensor_writes(
         )
     writes.extend((t, Topic.CONTROLLER, m) for t, m in states)
     nodes = node_events(by_topic.get(spec.node_topic, []), spec.node_topic)
-    if not nodes:
+    if not nodes and fronts:
+        nodes = _exits_from_ranges(by_topic, spec, sweeps, states)
+        result.notes.append(
+            f"{spec.node_topic}: no exit scans: the exits are worked out from the range "
+            "readings (docs/ros2.md)"
+        )
+    elif not nodes:
         result.notes.append(f"{spec.node_topic}: no exit scans: the map has no ports")
     writes.extend((t, Topic.NODE, m) for t, m in nodes)
     writes.extend((t, Topic.EVENTS, m) for t, m in events(by_topic.get(spec.rosout_topic, [])))
+
+
+def _exits_from_ranges(
+    by_topic: dict[str, list[tuple[int, Any]]],
+    spec: BagSpec,
+    sweeps: list[_Sweep],
+    states: list[tuple[int, Any]],
+) -> list[tuple[int, Any]]:
+    """Each visit's exits from the rangers' readings around its first sweep."""
+    visits: dict[int, VisitWindow] = {}
+    for sweep in sweeps:
+        if not sweep.start.probe and sweep.start.visit_id not in visits:
+            first, last = sweep.images[0].t_ns, sweep.images[-1].t_ns
+            visits[sweep.start.visit_id] = VisitWindow(sweep.start.visit_id, first, last)
+    side = math.radians(spec.range_side_deg)
+    rangers = [
+        (by_topic.get(spec.range_front_topic, []), 0.0),
+        (by_topic.get(spec.range_left_topic, []), side),
+        (by_topic.get(spec.range_right_topic, []), -side),
+    ]
+    poses = [(t, s.heading_estimate_rad, s.x_estimate_m, s.y_estimate_m) for t, s in states]
+    rates = [(t, float(m.angular_velocity.z)) for t, m in by_topic.get(spec.imu_topic, [])]
+    return derived_exits(
+        list(visits.values()), rangers, poses, rates, spec.exit_open_m, spec.exit_scan_s
+    )
 
 
 def _run_metadata(

@@ -13,7 +13,10 @@ from pipemap.cli.localizer_options import add_rule_options, add_similarity_optio
 if TYPE_CHECKING:
     from pipemap.cli.arguments import Subparsers
 
-__all__ = ["add_info", "add_replay", "add_score", "add_view"]
+__all__ = ["WEB_PORT", "add_info", "add_replay", "add_score", "add_view"]
+
+#: The port ``pipemap view --web`` serves on by default: rerun's own default.
+WEB_PORT = 9090
 
 
 def _add_log(p: argparse.ArgumentParser, several: bool = False) -> None:
@@ -105,6 +108,19 @@ def add_view(sub: Subparsers) -> None:
         helptext="write the recording to this file instead of opening the viewer",
     )
     arguments.add_force(p, "overwrite an existing file")
+    p.add_argument(
+        "--web",
+        action="store_true",
+        help="serve the view in rerun's web viewer on 127.0.0.1, for a browser, until "
+        "stopped (Ctrl-C); no display needed (with --save, the file is kept too)",
+    )
+    p.add_argument(
+        "--port",
+        type=int,
+        metavar="P",
+        help=f"with --web: the web viewer's port on 127.0.0.1, 0 for any free one "
+        f"(default {WEB_PORT})",
+    )
 
 
 def add_info(sub: Subparsers) -> None:

@@ -56,6 +56,15 @@ def run_export(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
             args.force,
             lambda f: sorted(p.name for p in f.iterdir() if p.name in mine),
         )
+    if Path(args.log).suffix == ".json":  # a map document: GeoJSON is all it gives
+        if ros2 is not None or tum is not None:
+            raise InputError(
+                f"{args.log}: a map document gives --geojson only; --ros2 and "
+                "--tum need the run's log"
+            )
+        features = api.export_geojson(Path(args.log), geojson)
+        out.write(f"{geojson}: {features} features (junctions and pipes)\n")
+        return 0
     log = api.open_log(args.log)  # a missing or foreign file is refused before any writing
     if ros2 is not None:
         result = api.export_ros2(log.path, ros2, overwrite=True)

@@ -46,9 +46,13 @@ def add_export(sub: Subparsers) -> None:
         "that ros2 bag, rosbags, Foxglove and RViz read and pipemap import reads back "
         "(--ros2, needs pipemap[ros]); the dead-reckoned and true trajectories in the TUM "
         "format evo reads, with each visit's junction position (--tum); the replayed map "
-        "as GeoJSON (--geojson). docs/ros2.md.",
+        "as GeoJSON (--geojson), also from a map document (MAP.json). docs/ros2.md.",
     )
-    p.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
+    p.add_argument(
+        "log",
+        metavar="RUN.mcap",
+        help="a pipemap log; for --geojson alone, also a map document (MAP.json)",
+    )
     arguments.add_output(
         p, "--ros2", metavar="OUT", helptext="write a rosbag2 bag folder here (a new folder)"
     )

@@ -25,11 +25,13 @@ import pickle
 import signal
 import socket
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 from urllib.parse import urlsplit
 
+from pipemap.cli.log_parser import WEB_PORT
 from pipemap.cli.outputs import output_file
 from pipemap.cli.replay_commands import localizer_config, progress_printer, report_damage
 from pipemap.errors import InputError, ViewerError
@@ -259,8 +261,10 @@ def _view(
     target: Path | None,
     out: TextIO,
     err: TextIO,
+    where: str | None = None,
 ) -> None:
-    """Replay the log beside the view's own work, then show or save the view.
+    """Replay the log beside the view's own work, then show or save the view
+    (``where``, if given, says where the view went in the last line).
 
     The log is opened (and refused if it is not one) before any work. Where the
     system can fork, a child replays it while this process imports rerun and logs
@@ -296,7 +300,8 @@ def _view(
     report_damage(str(log), viewed.contents, err)
     for warning in done.warnings:
         err.write(f"pipemap: note: {warning}\n")
-    where = "sent to the rerun viewer" if target is None else f"written to {target}"
+    if where is None:
+        where = "sent to the rerun viewer" if target is None else f"written to {target}"
     out.write(f"viewed {_summary(str(log), done)}, {where}\n")
 
 
@@ -309,9 +314,35 @@ def view_recorded(
     _view(log, lambda: LocalizerConfig(threshold=threshold), target, out, err)
 
 
+def _serve_web(args: argparse.Namespace, target: Path | None, out: TextIO, err: TextIO) -> int:
+    """``--web``: save the view (to ``target``, or a temporary file) and serve it in
+    rerun's web viewer on the loopback interface until a stop signal ends both."""
+    from pipemap.replay.web import serve_web
+
+    with tempfile.TemporaryDirectory(prefix="pipemap-web-") as folder:
+        rrd = target if target is not None else Path(folder) / "view.rrd"
+        where = "for the web viewer" if target is None else f"written to {target}"
+        _view(Path(args.log), lambda: localizer_config(args), rrd, out, err, where)
+        port = WEB_PORT if args.port is None else args.port
+        with serve_web(rrd, port, Path(folder) / "rerun.log") as server:
+            out.write(f"serving the view at {server.url} (Ctrl-C stops)\n")
+            out.flush()
+            status = server.process.wait()
+    raise ViewerError(f"rerun's web viewer stopped by itself (status {status})")
+
+
 def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
-    """Replay a log and show it in rerun, or save the recording with ``--save``."""
+    """Replay a log and show it in rerun, save the recording with ``--save``, or serve
+    it in rerun's web viewer with ``--web``."""
     target = _target(args)
+    if args.web:
+        from pipemap.replay.web import check_web_port, rerun_executable
+
+        rerun_executable()
+        check_web_port(WEB_PORT if args.port is None else args.port)
+        return _serve_web(args, target, out, err)
+    if args.port is not None:
+        raise InputError("--port: the web viewer's port, so it needs --web")
     if target is None:
         _check_display()
     _view(Path(args.log), lambda: localizer_config(args), target, out, err)

@@ -32,6 +32,7 @@ from pipemap.recorder import METADATA_RESULT, Topic, read_log
 from pipemap.replay import FileSource, replay
 from pipemap.replay.live import LiveView, LiveViewProcess
 from pipemap.replay.view import describe_decision
+from pipemap.replay.web import stop
 from tests.logs import SMALL_RUN
 from tests.replay.test_view import column, free_port, read_chunks, rows, run
 
@@ -63,13 +64,7 @@ def _wait_listening(port: int, process: subprocess.Popen[bytes]) -> None:
 
 
 def _stop(process: subprocess.Popen[Any]) -> None:
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+    stop(process, timeout_s=20.0)
 
 
 def _stop_server(process: subprocess.Popen[Any]) -> None:
