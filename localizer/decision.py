@@ -155,8 +155,9 @@ def best_candidate(
     known junction. The visit is known when the similarity reaches the threshold.
     The junction ``exclude`` (if any) never competes.
     """
-    allowed = [i for i in range(len(matches)) if i != exclude]
-    pool = [i for i in allowed if matches[i].refined] or allowed
+    pool = [i for i, m in enumerate(matches) if m.refined and i != exclude] or [
+        i for i in range(len(matches)) if i != exclude
+    ]
     if not pool:
         return None, 0.0, None
     best = max(pool, key=lambda i: (matches[i].similarity, -i))
