@@ -105,6 +105,14 @@ def add_view(sub: Subparsers) -> None:
         helptext="write the recording to this file instead of opening the viewer",
     )
     arguments.add_force(p, "overwrite an existing file")
+    p.add_argument(
+        "--max-rate",
+        type=arguments.max_rate,
+        default=None,
+        metavar="HZ",
+        help="show the range, IMU and wheel streams at most HZ messages a second each "
+        "(the log keeps all; 0 shows every message; default 10)",
+    )
 
 
 def add_info(sub: Subparsers) -> None:
