@@ -25,8 +25,6 @@ leaves by.
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import math
 from collections.abc import Callable, Sequence
 
@@ -38,6 +36,7 @@ from pipemap.localizer.decision import (
     ProbeRequest,
     ProbeSource,
     best_candidate,
+    check_order,
     probe_plan,
 )
 from pipemap.localizer.fastmatch import UNSCREENED, FastMatcher, PreparedSet
@@ -437,22 +436,7 @@ class Localizer:
             )
 
         # Refined junctions first, then screened ones: the two scores differ in scale.
-        # Those the index left out (all alike, :data:`UNSCREENED`) follow in node order,
-        # and are only looked at when the screened ones leave room: the ranking of all
-        # known junctions, without a pass over every one of them.
-        screened = [i for i, m in enumerate(matches) if m is not UNSCREENED]
-        unscreened = (i for i in range(len(matches)) if matches[i] is UNSCREENED)
-        ranked = list(
-            itertools.islice(
-                filter(
-                    allowed,
-                    heapq.merge(
-                        sorted(screened, key=_rank(matches)), unscreened, key=_rank(matches)
-                    ),
-                ),
-                self.config.verify_candidates,
-            )
-        )
+        ranked, screened = check_order(matches, allowed, self.config.verify_candidates)
         # The junction the map says this pipe leads to goes first: the similarity may
         # rank it low (a revisit from another pipe, seen from a little off the centre)
         # while its keypoints fit with hundreds of inliers.
@@ -501,9 +485,3 @@ class Localizer:
             and abs(matches[j].similarity - sim) <= self.config.alike_margin
             and allowed(j)
         )
-
-
-def _rank(matches: list[SetMatch]) -> Callable[[int], tuple[bool, float, int]]:
-    """The order in which candidates are checked: refined first, then by similarity,
-    then by node."""
-    return lambda i: (not matches[i].refined, -matches[i].similarity, i)
