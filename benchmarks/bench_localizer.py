@@ -34,10 +34,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
-import copy  # noqa: E402
 import itertools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
+import pickle  # noqa: E402
 import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
@@ -62,7 +62,6 @@ from pipemap.localizer import (  # noqa: E402
     ImageSet,
     Localizer,
     LocalizerConfig,
-    TopoMap,
     fit_two_view,
     pairwise_matches,
     prepare,
@@ -144,16 +143,17 @@ def _kept_per_junction_kib(localizer: Localizer) -> float:
     return held / localizer.known_count / 1024
 
 
-def _forget_after(localizer: Localizer, count: int, saved: TopoMap) -> None:
+def _forget_after(localizer: Localizer, count: int, saved: bytes) -> None:
     """Undo the decisions since the localizer knew ``count`` junctions (the index
-    only grows by appending, so truncating it is exact)."""
+    only grows by appending, so truncating it is exact); ``saved`` is the map then,
+    pickled (a tenth of the time a deep copy of 10 000 nodes took)."""
     matcher = localizer._matcher
     del matcher._sets[count:]
     matcher._index.truncate(count)
     for key in [k for k in matcher._fine_cache if k >= count]:
         del matcher._fine_cache[key]
     del localizer._features[count:]
-    localizer.map = copy.deepcopy(saved)
+    localizer.map = pickle.loads(saved)
 
 
 def decision_benchmark(
@@ -196,7 +196,7 @@ def decision_benchmark(
         localizer, distractors = _distractor_localizer(queries, size, rng)
         if not index:  # every junction screened, however many (as below INDEX_ABOVE)
             localizer._matcher.index_above = sys.maxsize
-        saved = copy.deepcopy(localizer.map)
+        saved = pickle.dumps(localizer.map, protocol=pickle.HIGHEST_PROTOCOL)
         walls, cpus, colds = [], [], []
         for query in queries:
             tries, cold_tries, decided_known = [], [], False

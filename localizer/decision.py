@@ -9,9 +9,13 @@ simulator moves the robot, a replay looks the sweep up in the log); and Algorith
 from __future__ import annotations
 
 import enum
+import heapq
+import itertools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
+from pipemap.localizer.fastmatch import UNSCREENED
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.twoview import TwoViewFit
@@ -23,6 +27,7 @@ __all__ = [
     "ProbeRequest",
     "ProbeSource",
     "best_candidate",
+    "check_order",
     "probe_plan",
 ]
 
@@ -155,8 +160,9 @@ def best_candidate(
     known junction. The visit is known when the similarity reaches the threshold.
     The junction ``exclude`` (if any) never competes.
     """
-    allowed = [i for i in range(len(matches)) if i != exclude]
-    pool = [i for i in allowed if matches[i].refined] or allowed
+    pool = [i for i, m in enumerate(matches) if m.refined and i != exclude] or [
+        i for i in range(len(matches)) if i != exclude
+    ]
     if not pool:
         return None, 0.0, None
     best = max(pool, key=lambda i: (matches[i].similarity, -i))
@@ -164,6 +170,25 @@ def best_candidate(
     if len(pool) > 1:
         margin = matches[best].similarity - max(matches[i].similarity for i in pool if i != best)
     return best, matches[best].similarity, margin
+
+
+def check_order(
+    matches: list[SetMatch], allowed: Callable[[int], bool], count: int
+) -> tuple[list[int], list[int]]:
+    """The first ``count`` junctions ``allowed`` in the order the two-view check tries
+    them (refined first, then by similarity, then by node), and the screened ones.
+
+    Those the index left out (all :data:`UNSCREENED`, alike) follow in node order and
+    are looked at only when the screened ones leave room: the order of sorting every
+    known junction, without a pass over each of them."""
+    screened = [i for i, m in enumerate(matches) if m is not UNSCREENED]
+    unscreened = (i for i in range(len(matches)) if matches[i] is UNSCREENED)
+
+    def rank(i: int) -> tuple[bool, float, int]:
+        return (not matches[i].refined, -matches[i].similarity, i)
+
+    merged = heapq.merge(sorted(screened, key=rank), unscreened, key=rank)
+    return list(itertools.islice(filter(allowed, merged), count)), screened
 
 
 def probe_plan(estimated_rotation_rad: float, distance_m: float) -> tuple[ProbeRequest, ...]:

@@ -333,6 +333,7 @@ def _kept(prepared: PreparedSet, keep_spectra: bool = False) -> PreparedSet:
         image_rows=empty,
         inv_window_norm=np.zeros((0,), dtype=np.float32),
         fine=None if rebuildable else prepared.fine,
+        fine_images=None if prepared.fine_images is None else prepared.fine_images.packed(),
     )
 
 

@@ -36,9 +36,10 @@ from pipemap.localizer.decision import (
     ProbeRequest,
     ProbeSource,
     best_candidate,
+    check_order,
     probe_plan,
 )
-from pipemap.localizer.fastmatch import FastMatcher, PreparedSet
+from pipemap.localizer.fastmatch import UNSCREENED, FastMatcher, PreparedSet
 from pipemap.localizer.illumination import normalised
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.phases import PhaseClock
@@ -422,22 +423,25 @@ class Localizer:
         ports; ``None`` if none does. Candidates whose keypoints fit but whose ports
         do not go to ``rejected``."""
         exclude = self._excluded()
+
         # A junction whose pipes cannot line up with the exits at any turn is not the
         # visit's (the port check would pass it over), nor one the robot is too far
         # from by odometry: neither takes a candidate's place.
-        allowed = [
-            i
-            for i in range(len(matches))
-            if i != exclude and self._allowed_rotations(i, exits, turn) != () and self._near(i)
-        ]
+        def allowed(i: int) -> bool:
+            return (
+                0 <= i < len(matches)
+                and i != exclude
+                and self._allowed_rotations(i, exits, turn) != ()
+                and self._near(i)
+            )
+
         # Refined junctions first, then screened ones: the two scores differ in scale.
-        ranked = sorted(allowed, key=lambda i: (not matches[i].refined, -matches[i].similarity, i))
-        ranked = ranked[: self.config.verify_candidates]
+        ranked, screened = check_order(matches, allowed, self.config.verify_candidates)
         # The junction the map says this pipe leads to goes first: the similarity may
         # rank it low (a revisit from another pipe, seen from a little off the centre)
         # while its keypoints fit with hundreds of inliers.
         expected = self.expected_node()
-        if expected is not None and expected in allowed:
+        if expected is not None and allowed(expected):
             ranked = [expected, *(i for i in ranked if i != expected)]
         for i in ranked:
             # The map's junction needs fewer inliers than the others (see
@@ -451,21 +455,33 @@ class Localizer:
                 if ports is not None and not ports.agrees and self.config.port_check:
                     rejected.append((i, ports.reason))
                     continue
-                return i, fit, ports, self._alike(i, expected, allowed, matches)
+                return i, fit, ports, self._alike(i, expected, allowed, matches, screened)
         return None
 
     def _alike(
-        self, node: int, expected: int | None, allowed: list[int], matches: list[SetMatch]
+        self,
+        node: int,
+        expected: int | None,
+        allowed: Callable[[int], bool],
+        matches: list[SetMatch],
+        screened: list[int],
     ) -> tuple[int, ...]:
-        """The other candidates as good as ``node`` by all but its fit: as refined,
-        within ``alike_margin`` of its similarity; none when the map expected it."""
+        """The other allowed candidates as good as ``node`` by all but its fit: as
+        refined, within ``alike_margin`` of its similarity; none when the map expected
+        it. ``screened`` are the junctions not :data:`UNSCREENED` (the others are
+        looked at only when that score is within the margin)."""
         if node == expected:
             return ()
         sim = matches[node].similarity
+        near = UNSCREENED.refined == matches[node].refined and (
+            abs(UNSCREENED.similarity - sim) <= self.config.alike_margin
+        )
+        pool = range(len(matches)) if near else screened
         return tuple(
             j
-            for j in allowed
+            for j in pool
             if j != node
             and matches[j].refined == matches[node].refined
             and abs(matches[j].similarity - sim) <= self.config.alike_margin
+            and allowed(j)
         )

@@ -34,7 +34,14 @@ from pipemap.recorder.topics import ROBOT_PREFIX
 from pipemap.replay.replayer import ReplayResult, VisitDecision, visit_label
 from pipemap.replay.source import MessageSource
 from pipemap.replay.view_blueprint import view_blueprint
-from pipemap.replay.view_topics import Carried, RobotGeometry, log_robot, log_truth, set_time
+from pipemap.replay.view_topics import (
+    DEFAULT_MAX_RATE_HZ,
+    Carried,
+    RobotGeometry,
+    log_robot,
+    log_truth,
+    set_time,
+)
 from pipemap.wholefile import partial_path
 
 if TYPE_CHECKING:
@@ -196,17 +203,23 @@ def _viewed(source: MessageSource) -> Iterator[LogMessage]:
     return (m for m in source.every_message() if m.topic.startswith((ROBOT_PREFIX, "/truth/")))
 
 
-def log_view(rec: rr.RecordingStream, source: MessageSource, result: Replayed) -> None:
+def log_view(
+    rec: rr.RecordingStream,
+    source: MessageSource,
+    result: Replayed,
+    max_rate_hz: float = DEFAULT_MAX_RATE_HZ,
+) -> None:
     """Log everything a view shows of ``source`` and its replay ``result`` to ``rec``.
 
     The log's own streams go first, :data:`VIEW_WINDOW` messages at a time (what
     one window leaves for the next carried over, as the live view does: the
     recording is the one a single window would make, chunked otherwise);
     ``result``, if a function, is called only then, so a replay running in another
-    process overlaps them.
+    process overlaps them. The range, IMU and wheel streams are shown at most
+    ``max_rate_hz`` messages a second each (0: all; :func:`view_topics.decimated`).
     """
     geometry = RobotGeometry.from_run(source.run_metadata())
-    carried = Carried()
+    carried = Carried(max_rate_hz=max_rate_hz)
     messages = _viewed(source)
     while window := list(itertools.islice(messages, VIEW_WINDOW)):
         by_topic: dict[str, list[LogMessage]] = defaultdict(list)
@@ -217,7 +230,12 @@ def log_view(rec: rr.RecordingStream, source: MessageSource, result: Replayed) -
     _log_map(rec, result if isinstance(result, ReplayResult) else result())
 
 
-def save_view(source: MessageSource, result: Replayed, path: Path | str) -> None:
+def save_view(
+    source: MessageSource,
+    result: Replayed,
+    path: Path | str,
+    max_rate_hz: float = DEFAULT_MAX_RATE_HZ,
+) -> None:
     """Write the view of ``source`` and ``result`` to the ``.rrd`` file ``path``.
 
     The file appears whole or not at all: it is written beside ``path`` under a
@@ -232,7 +250,7 @@ def save_view(source: MessageSource, result: Replayed, path: Path | str) -> None
     with partial_path(path) as partial:
         rec.save(partial, default_blueprint=view_blueprint())
         try:
-            log_view(rec, source, result)
+            log_view(rec, source, result, max_rate_hz)
             rec.flush()
         except RuntimeError as exc:  # rerun's file writer stopped: it could not write
             # Not disconnected: that would flush the dead writer again, and rerun
@@ -244,11 +262,13 @@ def save_view(source: MessageSource, result: Replayed, path: Path | str) -> None
         rec.disconnect()
 
 
-def spawn_view(source: MessageSource, result: Replayed) -> None:
+def spawn_view(
+    source: MessageSource, result: Replayed, max_rate_hz: float = DEFAULT_MAX_RATE_HZ
+) -> None:
     """Open the view of ``source`` and ``result`` in a rerun viewer (started if need be)."""
     rec = _recording(source)
     rec.spawn(default_blueprint=view_blueprint())
-    log_view(rec, source, result)
+    log_view(rec, source, result, max_rate_hz)
     try:
         rec.flush()
     except RuntimeError as exc:  # rerun's report of a viewer it cannot reach

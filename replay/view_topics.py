@@ -39,12 +39,15 @@ if TYPE_CHECKING:
     import rerun as rr
 
 __all__ = [
+    "DECIMATED_TOPICS",
+    "DEFAULT_MAX_RATE_HZ",
     "TIMELINE",
     "TRAIL_ENTITY",
     "TRAIL_PIECE_POINTS",
     "Carried",
     "RobotGeometry",
     "Trail",
+    "decimated",
     "log_robot",
     "log_truth",
     "set_time",
@@ -61,6 +64,12 @@ TRAIL_PIECE_POINTS = 200
 _RAY_COLORS = np.array([[255, 80, 80], [80, 200, 80], [80, 140, 255]], dtype=np.uint8)
 _CAMERA_RAY_M = 0.15
 _LOG_TIME = operator.attrgetter("log_time_ns")
+#: The high-rate streams a view thins out (the log keeps every message): the range
+#: sensors (20 Hz), the IMU (100 Hz) and the wheel encoders (50 Hz), each of which a
+#: 20-hour run logs millions of times.
+DECIMATED_TOPICS = (Topic.RANGES, Topic.IMU, Topic.WHEELS)
+#: The most messages of each decimated stream a view shows per second of log time.
+DEFAULT_MAX_RATE_HZ = 10.0
 _DATA = operator.attrgetter("data")
 
 
@@ -160,6 +169,29 @@ class Carried:
     styled: set[str] = field(default_factory=set)
     controller_state: str | None = None
     trail: Trail = field(default_factory=lambda: Trail())
+    #: At most this many messages a second of each of :data:`DECIMATED_TOPICS` are
+    #: shown (0: every one).
+    max_rate_hz: float = DEFAULT_MAX_RATE_HZ
+    #: Per decimated topic, the time slot (log time // period) of the last one shown.
+    shown_slot: dict[str, int] = field(default_factory=dict)
+
+
+def decimated(messages: list[LogMessage], topic: str, carried: Carried) -> list[LogMessage]:
+    """The messages of ``topic`` a view shows: the first of each ``1 / max_rate_hz``
+    slot of log time not shown yet (all of them when ``max_rate_hz`` is 0). Slots are
+    fixed on log time, and the last one shown is carried, so a log viewed a window at
+    a time or whole shows the same messages."""
+    if not messages or carried.max_rate_hz <= 0.0:
+        return messages
+    period_ns = max(1, round(1e9 / carried.max_rate_hz))
+    times = np.fromiter(map(_LOG_TIME, messages), dtype=np.int64, count=len(messages))
+    slots = times // period_ns
+    before = carried.shown_slot.get(topic, np.iinfo(np.int64).min)
+    # A message is shown when its slot is later than every slot before it.
+    highest = np.maximum.accumulate(np.concatenate(([before], slots[:-1])))
+    shown = np.flatnonzero(slots > highest)
+    carried.shown_slot[topic] = int(max(before, slots.max()))
+    return [messages[i] for i in shown]
 
 
 def _static(rec: rr.RecordingStream, entity: str, value: Any, carried: Carried) -> None:
@@ -430,6 +462,10 @@ def log_robot(
     import rerun as rr
 
     carried = carried if carried is not None else Carried()
+    messages = {
+        topic: decimated(found, topic, carried) if topic in DECIMATED_TOPICS else found
+        for topic, found in messages.items()
+    }
     half = (geometry.length_m / 2, geometry.width_m / 2, geometry.tof_height_m / 2)
     body = rr.Boxes3D(half_sizes=[half], centers=[(0.0, 0.0, half[2])], colors=(200, 200, 200))
     _static(rec, "world/robot/body", body, carried)

@@ -23,6 +23,7 @@ __all__ = [
     "fraction",
     "highpass",
     "images",
+    "max_rate",
     "motor_faults",
     "node_id",
     "positive_int",
@@ -115,6 +116,10 @@ highpass = _checked(
     float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "must be in [0, 1]", "0..1"
 )
 jpeg_quality = _checked(int, lambda v: 1 <= v <= 100, "JPEG quality must be 1..100", "1..100")
+#: ``view --max-rate``: messages a second of each high-rate stream (0: all of them).
+max_rate = _checked(
+    float, lambda v: math.isfinite(v) and v >= 0.0, "a rate must be >= 0 Hz", ">= 0 Hz"
+)
 alike = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "not in [0, 1]", "0..1")
 
 

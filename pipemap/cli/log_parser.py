@@ -121,6 +121,14 @@ def add_view(sub: Subparsers) -> None:
         help=f"with --web: the web viewer's port on 127.0.0.1, 0 for any free one "
         f"(default {WEB_PORT})",
     )
+    p.add_argument(
+        "--max-rate",
+        type=arguments.max_rate,
+        default=None,
+        metavar="HZ",
+        help="show the range, IMU and wheel streams at most HZ messages a second each "
+        "(the log keeps all; 0 shows every message; default 10)",
+    )
 
 
 def add_info(sub: Subparsers) -> None:

@@ -152,13 +152,17 @@ def _summary(name: str, result: ReplayResult) -> str:
     )
 
 
-def _show(source: MessageSource, result: Replayed, target: Path | None) -> None:
+def _show(
+    source: MessageSource, result: Replayed, target: Path | None, max_rate_hz: float | None
+) -> None:
     from pipemap.replay.view import save_view, spawn_view
+    from pipemap.replay.view_topics import DEFAULT_MAX_RATE_HZ
 
+    rate = DEFAULT_MAX_RATE_HZ if max_rate_hz is None else max_rate_hz
     if target is None:
-        spawn_view(source, result)
+        spawn_view(source, result, rate)
     else:
-        save_view(source, result, target)
+        save_view(source, result, target, rate)
 
 
 class _Child:
@@ -262,9 +266,12 @@ def _view(
     out: TextIO,
     err: TextIO,
     where: str | None = None,
+    max_rate_hz: float | None = None,
 ) -> None:
     """Replay the log beside the view's own work, then show or save the view
-    (``where``, if given, says where the view went in the last line).
+    (``where``, if given, says where the view went in the last line; the high-rate
+    streams at most ``max_rate_hz`` messages a second; ``None``: the default of
+    :mod:`replay.view_topics`).
 
     The log is opened (and refused if it is not one) before any work. Where the
     system can fork, a child replays it while this process imports rerun and logs
@@ -284,7 +291,7 @@ def _view(
         done = replay(
             open_log(), config(), progress_printer(err), keep_sets=False, keep_prepared=False
         )
-        _show(viewed, done, target)
+        _show(viewed, done, target, max_rate_hz)
     else:
         child = _Child(open_log, config, err)
         try:
@@ -293,7 +300,7 @@ def _view(
 
             from pipemap.replay import view  # noqa: F401
 
-            _show(viewed, child.result, target)
+            _show(viewed, child.result, target, max_rate_hz)
             done = child.result()
         finally:
             child.close()
@@ -322,7 +329,9 @@ def _serve_web(args: argparse.Namespace, target: Path | None, out: TextIO, err: 
     with tempfile.TemporaryDirectory(prefix="pipemap-web-") as folder:
         rrd = target if target is not None else Path(folder) / "view.rrd"
         where = "for the web viewer" if target is None else f"written to {target}"
-        _view(Path(args.log), lambda: localizer_config(args), rrd, out, err, where)
+        _view(
+            Path(args.log), lambda: localizer_config(args), rrd, out, err, where, args.max_rate
+        )
         port = WEB_PORT if args.port is None else args.port
         with serve_web(rrd, port, Path(folder) / "rerun.log") as server:
             out.write(f"serving the view at {server.url} (Ctrl-C stops)\n")
@@ -345,5 +354,5 @@ def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
         raise InputError("--port: the web viewer's port, so it needs --web")
     if target is None:
         _check_display()
-    _view(Path(args.log), lambda: localizer_config(args), target, out, err)
+    _view(Path(args.log), lambda: localizer_config(args), target, out, err, None, args.max_rate)
     return 0

@@ -321,3 +321,36 @@ def test_the_fft_module_is_loaded_with_the_matcher_not_at_the_first_sweep() -> N
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["False", "True"]
+
+
+def test_a_known_junction_keeps_box_means_in_12_bits_and_gets_them_back_exactly() -> None:
+    """The database packs the refinement images of an evenly lit 8-bit sweep (values
+    below 4096) two in three bytes; a lamp-lit sweep's (on the 1/256 grid, up to
+    65280) stay in two bytes. Either way the images it rebuilds spectra from are
+    exactly the query's."""
+    from pipemap.localizer.fastmatch import FastMatcher
+    from pipemap.localizer.illumination import normalised
+
+    for image_set, bytes_per_pixel in (
+        (ImageSet(np.rint(sweep(panorama(4)).images)), 1.5),
+        (normalised(sweep(panorama(3))), 2.0),
+    ):
+        prepared = prepare(image_set, FastConfig())
+        matcher = FastMatcher()
+        matcher.add(prepared)
+        kept = matcher._sets[0].fine_images
+        given = prepared.fine_images
+        assert kept is not None and given is not None
+        assert kept.values.nbytes == given.values.size * bytes_per_pixel
+        assert np.array_equal(kept.images(), given.images())
+
+
+def test_packing_in_12_bits_gives_back_an_odd_count_of_values_exactly() -> None:
+    from pipemap.localizer.prepared import Compact
+
+    values = (np.arange(15, dtype=np.uint16) * 273).reshape(3, 5)  # 0 .. 3822
+    compact = Compact(values, 16.0)
+    packed = compact.packed()
+    assert packed.values.nbytes == 24 and packed.shape == (3, 5)
+    assert np.array_equal(packed.images(), compact.images())
+    assert Compact(values + 300, 16.0).packed().shape is None  # 4122: beyond 12 bits

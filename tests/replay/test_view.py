@@ -2,8 +2,9 @@
 
 The recording is saved once per module from the shared 32 px run and checked with
 ``rerun rrd verify`` / ``rerun rrd compare`` and rerun's chunk reader
-(``rerun.chunk.RrdReader``): every image, pose and sensor sample is there, on the
-``sim_time`` timeline alone, and the map grows into the replay's map.
+(``rerun.chunk.RrdReader``): every image and pose is there, the high-rate sensor
+streams at 10 a second (every sample with ``--max-rate 0``), on the ``sim_time``
+timeline alone, and the map grows into the replay's map.
 """
 
 from __future__ import annotations
@@ -64,6 +65,15 @@ def chunks(saved: Path) -> dict[str, list[Any]]:
     return read_chunks(saved)
 
 
+@pytest.fixture(scope="module")
+def full(recorded_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The run viewed with every message of every stream (``--max-rate 0``)."""
+    path = tmp_path_factory.mktemp("view") / "full.rrd"
+    done = view(str(recorded_run), "--save", str(path), "--max-rate", "0")
+    assert done.returncode == 0, done.stderr
+    return path
+
+
 def rows(chunks: dict[str, list[Any]], entity: str, component: str) -> int:
     """Rows of ``entity`` on the timeline that hold ``component``."""
     return sum(
@@ -89,9 +99,8 @@ def test_rerun_verifies_the_recording(saved: Path) -> None:
     assert done.returncode == 0, done.stderr
 
 
-def test_every_image_pose_and_sample_is_there(
-    recorded_run: Path, chunks: dict[str, list[Any]]
-) -> None:
+def test_every_image_pose_and_sample_is_there(recorded_run: Path, full: Path) -> None:
+    chunks = read_chunks(full)
     counts = read_log(recorded_run).counts
     assert rows(chunks, "/camera/image", "EncodedImage:blob") == counts[Topic.IMAGE] == 78
     assert rows(chunks, "/world/robot", "Transform3D:translation") == counts[Topic.TRUE_POSE]
@@ -363,7 +372,7 @@ def recorded_rows(path: Path) -> dict[str, list[str]]:
 
 @pytest.mark.parametrize("window", [997, 10**9])
 def test_a_log_viewed_a_window_at_a_time_is_the_whole_log_viewed(
-    recorded_run: Path, saved: Path, tmp_path: Path, window: int, monkeypatch: pytest.MonkeyPatch
+    recorded_run: Path, full: Path, tmp_path: Path, window: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``pipemap view`` reads and logs a log a window of messages at a time (the
     run's log: about 80 000 messages, two windows by default): in windows of 997
@@ -380,8 +389,8 @@ def test_a_log_viewed_a_window_at_a_time_is_the_whole_log_viewed(
 
     monkeypatch.setattr(view_module, "log_robot", counting)
     again = tmp_path / f"window-{window}.rrd"
-    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), again)
-    assert recorded_rows(again) == recorded_rows(saved)
+    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), again, 0.0)
+    assert recorded_rows(again) == recorded_rows(full)
     viewed = sum(read_log(recorded_run).counts.values())
     assert len(windows) == -(-viewed // window)  # a window of messages at a time
     # A style is logged once, not once a window.
@@ -454,3 +463,58 @@ def test_a_decision_says_when_its_fit_matched_only_the_first_stages() -> None:
     line = view_module.describe_decision(quarter)
     assert f"({fit.inliers} inliers of the first 1 stage(s))" in line
     assert line.replace(" of the first 1 stage(s)", "") == whole
+
+
+def first_of_each_slot(recorded_run: Path, topic: str, period_ns: int) -> list[int]:
+    """Log times of the first message of ``topic`` in each slot of ``period_ns``."""
+    times = sorted(m.log_time_ns for m in read_log(recorded_run).messages if m.topic == topic)
+    firsts: dict[int, int] = {}
+    for t in times:
+        firsts.setdefault(t // period_ns, t)
+    return sorted(firsts.values())
+
+
+def test_the_view_shows_the_high_rate_streams_at_10_hz_by_default(
+    recorded_run: Path, chunks: dict[str, list[Any]]
+) -> None:
+    """Ranges (20 Hz), IMU (100 Hz) and wheels (50 Hz): the first message of each
+    tenth of a second of log time, and nothing else; the other streams are whole."""
+    got = chunks
+    counts = read_log(recorded_run).counts
+    streams = {
+        "/sensors/tof/range_m": Topic.RANGES,
+        "/world/robot/tof": Topic.RANGES,
+        "/sensors/imu/yaw_rate_rps": Topic.IMU,
+        "/sensors/imu/accel_mps2": Topic.IMU,
+        "/sensors/wheels/ticks": Topic.WHEELS,
+    }
+    for entity, topic in streams.items():
+        expected = first_of_each_slot(recorded_run, topic, 100_000_000)
+        shown = sorted(
+            t
+            for c in got[entity]
+            if not c.is_static
+            for t in c.to_record_batch().column("sim_time").cast("int64").to_pylist()
+        )
+        assert shown == expected, entity
+        assert len(shown) < counts[topic] / 1.9, entity  # thinned out, even the 20 Hz one
+    assert len(column(got, "/controller/linear_mps", "Scalars:scalars")) == counts[Topic.CONTROLLER]
+    assert rows(got, "/world/robot", "Transform3D:translation") == counts[Topic.TRUE_POSE]
+    assert rows(got, "/camera/image", "EncodedImage:blob") == counts[Topic.IMAGE]
+
+
+def test_a_decimated_view_a_window_at_a_time_is_the_whole_log_decimated(
+    recorded_run: Path, saved: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The slot of the last message shown carries over from one window to the next."""
+    monkeypatch.setattr(view_module, "VIEW_WINDOW", 997)
+    again = tmp_path / "windows.rrd"
+    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), again)
+    assert recorded_rows(again) == recorded_rows(saved)
+
+
+def test_a_negative_rate_is_refused(recorded_run: Path, tmp_path: Path) -> None:
+    done = view(str(recorded_run), "--save", str(tmp_path / "x.rrd"), "--max-rate", "-1")
+    assert done.returncode == 2
+    assert done.stderr.startswith("pipemap: error:") and "--max-rate" in done.stderr
+    assert not (tmp_path / "x.rrd").exists()

@@ -1,0 +1,60 @@
+"""The two-view check's candidates among many known junctions, most of them left out
+of the screen by the index: the order of checking every known junction, found
+without a pass over each of them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipemap.localizer import Localizer, LocalizerConfig
+from pipemap.localizer.fastmatch import UNSCREENED
+from pipemap.localizer.similarity import SetMatch
+
+KNOWN = 2000
+
+
+def _match(similarity: float, refined: bool) -> SetMatch:
+    return SetMatch(similarity, 0, 0.0, 0.0, 0.0, refined=refined)
+
+
+def _exhaustive(matches: list[SetMatch], allowed: set[int], count: int) -> list[int]:
+    """The candidates as the check once ranked them: every allowed junction sorted."""
+    ranked = sorted(
+        (i for i in range(len(matches)) if i in allowed),
+        key=lambda i: (not matches[i].refined, -matches[i].similarity, i),
+    )
+    return ranked[:count]
+
+
+@pytest.mark.parametrize("near_share", [1.0, 0.05, 0.0])
+def test_the_candidates_are_the_best_allowed_of_every_known_junction(
+    near_share: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With most junctions unscreened and some screened ones ruled out by odometry
+    (all of them, with ``near_share`` 0: then the unscreened fill in, in node order),
+    the junctions fitted are the exhaustive ranking's, and the allowed test runs on
+    a few junctions beyond the screened, not on all."""
+    rng = np.random.default_rng(3)
+    matches = [UNSCREENED] * KNOWN
+    screened = sorted(rng.choice(KNOWN, 70, replace=False).tolist())
+    for rank, i in enumerate(screened):
+        matches[i] = _match(float(rng.uniform(-0.5, 0.9)), refined=rank % 9 == 0)
+    near = set(range(KNOWN)) - {i for i in screened if rng.random() >= near_share}
+    localizer = Localizer(LocalizerConfig())
+    asked: list[int] = []
+    fitted: list[int] = []
+
+    def is_near(i: int) -> bool:
+        asked.append(i)
+        return i in near
+
+    monkeypatch.setattr(localizer, "_near", is_near)
+    # No ports to compare (the map of this test has no nodes).
+    monkeypatch.setattr(localizer, "_allowed_rotations", lambda *args: None)
+    monkeypatch.setattr(localizer, "_fit", lambda i, *args: fitted.append(i))
+    rejected: list[tuple[int, str]] = []
+    assert localizer._verified(None, matches, 0.0, None, rejected) is None  # type: ignore[arg-type]
+    expected = _exhaustive(matches, near, localizer.config.verify_candidates)
+    assert fitted == expected
+    assert len(asked) <= len(screened) + localizer.config.verify_candidates
