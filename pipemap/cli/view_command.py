@@ -329,9 +329,7 @@ def _serve_web(args: argparse.Namespace, target: Path | None, out: TextIO, err: 
     with tempfile.TemporaryDirectory(prefix="pipemap-web-") as folder:
         rrd = target if target is not None else Path(folder) / "view.rrd"
         where = "for the web viewer" if target is None else f"written to {target}"
-        _view(
-            Path(args.log), lambda: localizer_config(args), rrd, out, err, where, args.max_rate
-        )
+        _view(Path(args.log), lambda: localizer_config(args), rrd, out, err, where, args.max_rate)
         port = WEB_PORT if args.port is None else args.port
         with serve_web(rrd, port, Path(folder) / "rerun.log") as server:
             out.write(f"serving the view at {server.url} (Ctrl-C stops)\n")
