@@ -11,6 +11,8 @@ Where something is wrong it does what ``mcap recover`` and ``mcap doctor`` do:
   that does not exist), the walk picks up again at the next intact chunk: the one
   the summary's chunk index names, or, without a summary, the next place where a
   whole chunk parses and its CRC matches;
+* a chunk that holds the very records of one read before (a copy another program
+  made) is read once and named, not lost;
 * a file that stops early is truncated, not damaged: everything up to the last
   complete record is kept;
 * a damaged summary or footer loses nothing (every message is in the data section),
@@ -28,6 +30,7 @@ and footer around the data section by :mod:`recorder.mcapsummary`.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import itertools
 import struct
 from collections.abc import Callable, Iterator
@@ -122,6 +125,8 @@ class _Walker:
         self.summary: Summary | None = None
         self.chunk_at: dict[int, ChunkIndex] = {}
         self.chunks_seen = 0
+        #: (start, end, digest of the records) -> where and which chunk first held them
+        self.chunk_digests: dict[tuple[int, int, bytes], tuple[int, int | None]] = {}
         self.pending: Lost | None = None  # the last lost chunk, for its message indexes
         self.data_end_seen = False
         self.data_end_at = 0
@@ -189,7 +194,7 @@ class _Walker:
             for offset in index.message_index_offsets.values():
                 self._count_index(offset, lost)
         else:
-            lost.chunk = None if self.summary is not None else self.chunks_seen
+            lost.chunk = self._number(position)
             with contextlib.suppress(struct.error):
                 times = unpack_at(CHUNK, self.data, position + HEAD.size)
                 lost.start_ns, lost.end_ns = times[0], times[1]
@@ -231,7 +236,7 @@ class _Walker:
         if opcode == Opcode.CHUNK:
             self.chunks_seen += 1
             self.pending = None
-            return self.chunk(body)
+            return self.chunk(body, position)
         if opcode == Opcode.MESSAGE_INDEX:
             if self.pending is not None:
                 self._add_index(body, self.pending)
@@ -268,8 +273,10 @@ class _Walker:
         self.out.unknown_channel_messages += len(messages) - len(out)
         return out
 
-    def chunk(self, body: Body) -> list[Message]:
-        _start, _end, records = chunk_records(body)
+    def chunk(self, body: Body, position: int) -> list[Message]:
+        start_ns, end_ns, records = chunk_records(body)
+        if self._repeats(position, (start_ns, end_ns, hashlib.blake2b(records).digest())):
+            return []
         # Parse the whole chunk before keeping any of it: a chunk is lost or kept whole.
         schemas: list[tuple[int, tuple[str, str]]] = []
         channels: list[tuple[int, tuple[str, int, str]]] = []
@@ -299,6 +306,25 @@ class _Walker:
         for key, (topic, schema_id, encoding) in channels:
             self.out.channels[key] = (topic, schema_id, encoding)
         return self.known(messages)
+
+    def _number(self, position: int) -> int | None:
+        """A chunk's number: the summary's, else its place in the file when there is no
+        summary to number it (``None`` for a chunk the summary does not name)."""
+        index = self.chunk_at.get(position)
+        if index is not None:
+            return index.number
+        return None if self.summary is not None else self.chunks_seen
+
+    def _repeats(self, position: int, key: tuple[int, int, bytes]) -> bool:
+        """Whether the chunk at ``position`` holds the very records of one read before
+        (a copy another program made): then it is read once, and the copy is named."""
+        first = self.chunk_digests.setdefault(key, (position, self._number(position)))
+        if first[0] == position:
+            return False
+        was = f"chunk {first[1]} (byte {first[0]})" if first[1] else f"the chunk at byte {first[0]}"
+        problem = f"holds the same records as {was}: read once (no message is lost)"
+        self.out.lost.append(Lost(position, problem, self._number(position)))
+        return True
 
     def walk(self, position: int) -> Iterator[list[Message]]:
         """The data section from byte ``position`` on: the messages of each record
