@@ -41,7 +41,6 @@ from mcap.opcode import Opcode
 from pipemap.recorder.filebytes import ByteSource, FileBytes, crc32_between, unpack_at
 from pipemap.recorder.mcaprecords import (
     CHUNK,
-    FOOTER_RECORD,
     HEAD,
     KNOWN_OPCODES,
     MAGIC,
@@ -59,6 +58,7 @@ from pipemap.recorder.mcaprecords import (
 from pipemap.recorder.mcapsummary import (
     ChunkIndex,
     Summary,
+    closing_magic_end,
     missing_magic,
     read_header,
     read_summary,
@@ -116,6 +116,10 @@ class Scan:
     chunk_count: int | None = None
     #: Messages whose channel record was never read (lost with a damaged chunk).
     unknown_channel_messages: int = 0
+    #: (name, offset, values) of each metadata record whose name an earlier one had.
+    repeated_metadata: list[tuple[str, int, dict[str, str]]] = field(default_factory=list)
+    #: Where another MCAP file begins after this one's closing magic (0 where none does).
+    joined_at: int = 0
 
 
 class _Walker:
@@ -251,6 +255,8 @@ class _Walker:
         elif opcode == Opcode.METADATA:
             name = body.string()
             values = body.string_map()
+            if name in out.metadata:
+                out.repeated_metadata.append((name, position, values))
             out.metadata.setdefault(name, values)
         elif opcode == Opcode.DATA_END:
             (expected,) = body.unpack(U32)
@@ -402,11 +408,15 @@ class _Walker:
     def finish(self) -> None:
         """Say how the file ends, if it stops short of its closing magic."""
         data, out = self.data, self.out
+        ends = closing_magic_end(data, self.data_end_at) if self.data_end_seen else 0
+        if ends and not out.truncated and data[ends : ends + len(MAGIC)] == MAGIC:
+            # Two files joined end to end: the summary found is the second's.
+            out.joined_at, self.tail = ends, ""
+            return
         if out.truncated or self.tail or data[-len(MAGIC) :] == MAGIC:
             return
         missing = missing_magic(data)
-        ends = self._closing_magic_end() if self.data_end_seen and not missing else 0
-        if ends:
+        if ends and not missing:
             # Longer than the log, not shorter: another program appended to it.
             self.tail = f"{len(data) - ends} byte(s) after the log's end (its closing magic "
             self.tail += f"ends at byte {ends})"
@@ -416,18 +426,6 @@ class _Walker:
             out.truncated = f"file ends at byte {len(data)}, in its summary, after every message"
         else:
             out.truncated = f"file ends at byte {len(data)}, before the end of its data"
-
-    def _closing_magic_end(self) -> int:
-        """Where a footer and closing magic after the data end stop (0 if none does):
-        the summary is small, so the search is short."""
-        data = self.data
-        found = data.find(MAGIC, self.data_end_at)
-        while found != -1:
-            at = found - FOOTER_RECORD
-            if at >= self.data_end_at and data[at] == Opcode.FOOTER:
-                return found + len(MAGIC)
-            found = data.find(MAGIC, found + 1)
-        return 0
 
 
 class Walk:
