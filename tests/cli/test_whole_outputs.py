@@ -30,7 +30,7 @@ def _limited(
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
 
-    env = dict(os.environ)
+    env = {key: value for key, value in os.environ.items() if key != "RUST_LOG"}
     if tmpdir is not None:
         env["TMPDIR"] = str(tmpdir)
     return subprocess.run(
@@ -72,9 +72,8 @@ def test_results_that_do_not_fit_leave_no_half_written_json(tmp_path: Path) -> N
 def test_a_view_that_does_not_fit_is_exit_3_and_leaves_nothing(tmp_path: Path) -> None:
     target = tmp_path / "view.rrd"
     done = _limited(100_000, "view", str(LOG), "--save", str(target))
-    assert done.returncode == 3, done.stderr
-    assert f"pipemap: error: {target}: cannot write" in done.stderr
-    assert "Traceback" not in done.stderr
+    # pipemap's line alone: rerun's file writer logs its failure itself unless told not to.
+    _one_error_line(done, f"{target}: cannot write (rerun: ")
     assert list(tmp_path.iterdir()) == []
 
 
