@@ -129,8 +129,9 @@ class _Walker:
         self.summary: Summary | None = None
         self.chunk_at: dict[int, ChunkIndex] = {}
         self.chunks_seen = 0
-        #: (start, end, digest of the records) -> where and which chunk first held them
-        self.chunk_digests: dict[tuple[int, int, bytes], tuple[int, int | None]] = {}
+        #: (start, end, size, CRC or digest of the records) -> where and which chunk
+        #: first held them
+        self.chunk_digests: dict[tuple[int, int, int, bytes], tuple[int, int | None]] = {}
         self.pending: Lost | None = None  # the last lost chunk, for its message indexes
         self.data_end_seen = False
         self.data_end_at = 0
@@ -280,8 +281,12 @@ class _Walker:
         return out
 
     def chunk(self, body: Body, position: int) -> list[Message]:
+        crc = unpack_at(CHUNK, body.data, body.pos)[3]
         start_ns, end_ns, records = chunk_records(body)
-        if self._repeats(position, (start_ns, end_ns, hashlib.blake2b(records).digest())):
+        # The records' CRC, checked by chunk_records, tells a copy from another chunk of
+        # the same time range and size; a digest stands in where the writer left it 0.
+        same = crc.to_bytes(4, "little") if crc else hashlib.blake2b(records).digest()
+        if self._repeats(position, (start_ns, end_ns, len(records), same)):
             return []
         # Parse the whole chunk before keeping any of it: a chunk is lost or kept whole.
         schemas: list[tuple[int, tuple[str, str]]] = []
@@ -321,7 +326,7 @@ class _Walker:
             return index.number
         return None if self.summary is not None else self.chunks_seen
 
-    def _repeats(self, position: int, key: tuple[int, int, bytes]) -> bool:
+    def _repeats(self, position: int, key: tuple[int, int, int, bytes]) -> bool:
         """Whether the chunk at ``position`` holds the very records of one read before
         (a copy another program made): then it is read once, and the copy is named."""
         first = self.chunk_digests.setdefault(key, (position, self._number(position)))
