@@ -14,12 +14,12 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 from pipemap.errors import WriteError
 
-__all__ = ["partial_path", "write_whole"]
+__all__ = ["partial_path", "write_all", "write_whole"]
 
 
 def _new_partial(path: Path) -> Path:
@@ -70,12 +70,22 @@ def write_whole(path: Path | str, data: bytes | str, replace: bool = True) -> No
     """Write ``data`` (text as UTF-8) to ``path`` whole or not at all; a failure (a
     full disk, the file size limit) is a :class:`WriteError` naming the file. With
     ``replace`` false an existing ``path`` is a :class:`FileExistsError`."""
-    path = Path(path)
-    payload = data.encode("utf-8") if isinstance(data, str) else data
-    try:
-        with partial_path(path, replace) as partial, partial.open("wb") as stream:
-            stream.write(payload)
-    except FileExistsError:
-        raise
-    except OSError as exc:
-        raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    write_all({Path(path): data}, replace)
+
+
+def write_all(files: Mapping[Path, bytes | str], replace: bool = True) -> None:
+    """Write every one of ``files`` (path: data, text as UTF-8) whole, or none of them:
+    each goes to its temporary name, and they are renamed onto their names only once
+    every one is written, so a disk that fills at the second leaves no first one
+    without it. A failure is a :class:`WriteError` naming the file it hit."""
+    with contextlib.ExitStack() as renames:
+        for path, data in files.items():
+            payload = data.encode("utf-8") if isinstance(data, str) else data
+            try:
+                partial = renames.enter_context(partial_path(path, replace))
+                with partial.open("wb") as stream:
+                    stream.write(payload)
+            except (FileExistsError, WriteError):
+                raise
+            except OSError as exc:
+                raise WriteError(f"{path}: cannot write ({exc.strerror or exc})") from None

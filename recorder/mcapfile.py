@@ -11,6 +11,8 @@ Where something is wrong it does what ``mcap recover`` and ``mcap doctor`` do:
   that does not exist), the walk picks up again at the next intact chunk: the one
   the summary's chunk index names, or, without a summary, the next place where a
   whole chunk parses and its CRC matches;
+* a chunk that holds the very records of one read before (a copy another program
+  made) is read once and named, not lost;
 * a file that stops early is truncated, not damaged: everything up to the last
   complete record is kept;
 * a damaged summary or footer loses nothing (every message is in the data section),
@@ -28,6 +30,7 @@ and footer around the data section by :mod:`recorder.mcapsummary`.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import itertools
 import struct
 from collections.abc import Callable, Iterator
@@ -38,7 +41,6 @@ from mcap.opcode import Opcode
 from pipemap.recorder.filebytes import ByteSource, FileBytes, crc32_between, unpack_at
 from pipemap.recorder.mcaprecords import (
     CHUNK,
-    FOOTER_RECORD,
     HEAD,
     KNOWN_OPCODES,
     MAGIC,
@@ -56,6 +58,7 @@ from pipemap.recorder.mcaprecords import (
 from pipemap.recorder.mcapsummary import (
     ChunkIndex,
     Summary,
+    closing_magic_end,
     missing_magic,
     read_header,
     read_summary,
@@ -113,6 +116,10 @@ class Scan:
     chunk_count: int | None = None
     #: Messages whose channel record was never read (lost with a damaged chunk).
     unknown_channel_messages: int = 0
+    #: (name, offset, values) of each metadata record whose name an earlier one had.
+    repeated_metadata: list[tuple[str, int, dict[str, str]]] = field(default_factory=list)
+    #: Where another MCAP file begins after this one's closing magic (0 where none does).
+    joined_at: int = 0
 
 
 class _Walker:
@@ -122,6 +129,9 @@ class _Walker:
         self.summary: Summary | None = None
         self.chunk_at: dict[int, ChunkIndex] = {}
         self.chunks_seen = 0
+        #: (start, end, size, CRC or digest of the records) -> where and which chunk
+        #: first held them
+        self.chunk_digests: dict[tuple[int, int, int, bytes], tuple[int, int | None]] = {}
         self.pending: Lost | None = None  # the last lost chunk, for its message indexes
         self.data_end_seen = False
         self.data_end_at = 0
@@ -189,7 +199,7 @@ class _Walker:
             for offset in index.message_index_offsets.values():
                 self._count_index(offset, lost)
         else:
-            lost.chunk = None if self.summary is not None else self.chunks_seen
+            lost.chunk = self._number(position)
             with contextlib.suppress(struct.error):
                 times = unpack_at(CHUNK, self.data, position + HEAD.size)
                 lost.start_ns, lost.end_ns = times[0], times[1]
@@ -231,7 +241,7 @@ class _Walker:
         if opcode == Opcode.CHUNK:
             self.chunks_seen += 1
             self.pending = None
-            return self.chunk(body)
+            return self.chunk(body, position)
         if opcode == Opcode.MESSAGE_INDEX:
             if self.pending is not None:
                 self._add_index(body, self.pending)
@@ -246,6 +256,8 @@ class _Walker:
         elif opcode == Opcode.METADATA:
             name = body.string()
             values = body.string_map()
+            if name in out.metadata:
+                out.repeated_metadata.append((name, position, values))
             out.metadata.setdefault(name, values)
         elif opcode == Opcode.DATA_END:
             (expected,) = body.unpack(U32)
@@ -268,8 +280,14 @@ class _Walker:
         self.out.unknown_channel_messages += len(messages) - len(out)
         return out
 
-    def chunk(self, body: Body) -> list[Message]:
-        _start, _end, records = chunk_records(body)
+    def chunk(self, body: Body, position: int) -> list[Message]:
+        crc = unpack_at(CHUNK, body.data, body.pos)[3]
+        start_ns, end_ns, records = chunk_records(body)
+        # The records' CRC, checked by chunk_records, tells a copy from another chunk of
+        # the same time range and size; a digest stands in where the writer left it 0.
+        same = crc.to_bytes(4, "little") if crc else hashlib.blake2b(records).digest()
+        if self._repeats(position, (start_ns, end_ns, len(records), same)):
+            return []
         # Parse the whole chunk before keeping any of it: a chunk is lost or kept whole.
         schemas: list[tuple[int, tuple[str, str]]] = []
         channels: list[tuple[int, tuple[str, int, str]]] = []
@@ -299,6 +317,25 @@ class _Walker:
         for key, (topic, schema_id, encoding) in channels:
             self.out.channels[key] = (topic, schema_id, encoding)
         return self.known(messages)
+
+    def _number(self, position: int) -> int | None:
+        """A chunk's number: the summary's, else its place in the file when there is no
+        summary to number it (``None`` for a chunk the summary does not name)."""
+        index = self.chunk_at.get(position)
+        if index is not None:
+            return index.number
+        return None if self.summary is not None else self.chunks_seen
+
+    def _repeats(self, position: int, key: tuple[int, int, int, bytes]) -> bool:
+        """Whether the chunk at ``position`` holds the very records of one read before
+        (a copy another program made): then it is read once, and the copy is named."""
+        first = self.chunk_digests.setdefault(key, (position, self._number(position)))
+        if first[0] == position:
+            return False
+        was = f"chunk {first[1]} (byte {first[0]})" if first[1] else f"the chunk at byte {first[0]}"
+        problem = f"holds the same records as {was}: read once (no message is lost)"
+        self.out.lost.append(Lost(position, problem, self._number(position)))
+        return True
 
     def walk(self, position: int) -> Iterator[list[Message]]:
         """The data section from byte ``position`` on: the messages of each record
@@ -376,11 +413,15 @@ class _Walker:
     def finish(self) -> None:
         """Say how the file ends, if it stops short of its closing magic."""
         data, out = self.data, self.out
+        ends = closing_magic_end(data, self.data_end_at) if self.data_end_seen else 0
+        if ends and not out.truncated and data[ends : ends + len(MAGIC)] == MAGIC:
+            # Two files joined end to end: the summary found is the second's.
+            out.joined_at, self.tail = ends, ""
+            return
         if out.truncated or self.tail or data[-len(MAGIC) :] == MAGIC:
             return
         missing = missing_magic(data)
-        ends = self._closing_magic_end() if self.data_end_seen and not missing else 0
-        if ends:
+        if ends and not missing:
             # Longer than the log, not shorter: another program appended to it.
             self.tail = f"{len(data) - ends} byte(s) after the log's end (its closing magic "
             self.tail += f"ends at byte {ends})"
@@ -390,18 +431,6 @@ class _Walker:
             out.truncated = f"file ends at byte {len(data)}, in its summary, after every message"
         else:
             out.truncated = f"file ends at byte {len(data)}, before the end of its data"
-
-    def _closing_magic_end(self) -> int:
-        """Where a footer and closing magic after the data end stop (0 if none does):
-        the summary is small, so the search is short."""
-        data = self.data
-        found = data.find(MAGIC, self.data_end_at)
-        while found != -1:
-            at = found - FOOTER_RECORD
-            if at >= self.data_end_at and data[at] == Opcode.FOOTER:
-                return found + len(MAGIC)
-            found = data.find(MAGIC, found + 1)
-        return 0
 
 
 class Walk:

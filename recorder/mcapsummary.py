@@ -25,7 +25,14 @@ from pipemap.recorder.mcaprecords import (
     describe,
 )
 
-__all__ = ["ChunkIndex", "Summary", "missing_magic", "read_header", "read_summary"]
+__all__ = [
+    "ChunkIndex",
+    "Summary",
+    "closing_magic_end",
+    "missing_magic",
+    "read_header",
+    "read_summary",
+]
 
 _CHUNK_INDEX = struct.Struct("<QQQQ")
 
@@ -161,4 +168,16 @@ def missing_magic(data: ByteSource) -> int:
             (length,) = unpack_at(U64, data, at + 1)
             if length == FOOTER.size:
                 return missing
+    return 0
+
+
+def closing_magic_end(data: ByteSource, data_end_at: int) -> int:
+    """Where the first footer and closing magic after the data end record at
+    ``data_end_at`` stop (0 if none does): the summary is small, so the search is short."""
+    found = data.find(MAGIC, data_end_at)
+    while found != -1:
+        at = found - FOOTER_RECORD
+        if at >= data_end_at and data[at] == Opcode.FOOTER:
+            return int(found + len(MAGIC))
+        found = data.find(MAGIC, found + 1)
     return 0

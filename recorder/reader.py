@@ -41,6 +41,7 @@ from typing import BinaryIO, NamedTuple
 
 from pipemap.errors import LogFormatError
 from pipemap.recorder.mcapfile import FileBytes, Lost, McapHeaderError, Message, Scan, Walk
+from pipemap.recorder.runs import indexed_runs, several_runs
 from pipemap.recorder.topics import METADATA_RUN, READABLE_VERSIONS, TOPICS
 
 __all__ = [
@@ -141,6 +142,9 @@ class LogContents:
     truncated: str = ""
     first_time_ns: int | None = None
     last_time_ns: int | None = None
+    #: What a file of several runs holds, and how to part them ("" for one run): a
+    #: replay, a score and a view refuse such a file; ``info`` describes it.
+    several_runs: str = ""
 
     @property
     def duration_ns(self) -> int:
@@ -223,6 +227,8 @@ class LogStream:
             raise
         #: What the log holds, as far as it has been read.
         self.contents = LogContents(library=self._walk.scan.library)
+        # The summary tells it before the walk does.
+        self.contents.several_runs = indexed_runs(self._walk.scan.indexed_metadata)
         self._kept: dict[str, bool] = {}
         # Weakly: the reading refers to this stream, and a loop left early must free
         # it (and so close the file) without waiting for the cycle collector.
@@ -354,6 +360,9 @@ class LogStream:
             )
         if tail:
             contents.damage.append(Damage(len(self._data), f"{tail} (no message is lost)"))
+        damage, several = several_runs(contents.metadata, result, len(self._data))
+        contents.damage += [Damage(at, problem) for at, problem in damage]
+        contents.several_runs = several or contents.several_runs
         contents.truncated = result.truncated
         problems = [d.describe() for d in contents.damage]
         if result.truncated:

@@ -173,6 +173,7 @@ class FileSource(_LogFile):
     def __init__(self, path: Path | str, topics: Collection[str] | None = None) -> None:
         self.path = Path(path)
         self._contents = read_log(self.path, keep=_keeper(topics))
+        _check_one_run(self.path, self._contents)
         _check_camera(self.path, self._contents)
         # Grouped by topic in one pass (a view wants the topics apart, a replay the
         # /robot ones together), and put in order once: a replay and a view both ask.
@@ -217,6 +218,7 @@ class StreamSource(_LogFile):
         self._keep = _keeper(topics)
         self._next: LogStream | None = iter_log(self.path, self._keep)
         self._contents = self._next.contents
+        _check_one_run(self.path, self._contents)
         self._truth: list[LogMessage] | None = None
         self._read = False  # whether a pass has read the whole file
 
@@ -231,6 +233,7 @@ class StreamSource(_LogFile):
                     truth.append(m)
                 yield m
         self._truth, self._read = truth, True
+        _check_one_run(self.path, self._contents)
         _check_camera(self.path, self._contents)
 
     def robot_stream(self) -> Iterator[LogMessage]:
@@ -261,6 +264,13 @@ def _keeper(topics: Collection[str] | None) -> Callable[[str], bool]:
         return lambda topic: topic.startswith((ROBOT_PREFIX, "/truth/"))
     wanted = frozenset(topics)
     return lambda topic: topic in wanted
+
+
+def _check_one_run(path: Path, contents: LogContents) -> None:
+    """Refuse a file of several runs (merged or joined by another program): a map or a
+    score is of one run, and the file does not say which one is meant."""
+    if contents.several_runs:
+        raise LogFormatError(f"{path}: {contents.several_runs}")
 
 
 def _check_camera(path: Path, contents: LogContents) -> None:

@@ -10,6 +10,7 @@ result, not an error: exit 0.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Collection
 from pathlib import Path
@@ -24,7 +25,7 @@ from pipemap.cli.localizer_options import (
 )
 from pipemap.cli.outputs import output_file, output_folder, write_text
 from pipemap.errors import InputError, WriteError
-from pipemap.wholefile import partial_path
+from pipemap.wholefile import partial_path, write_all
 
 __all__ = [
     "localizer_config",
@@ -157,12 +158,7 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
     pairs = zip(logs, sources, strict=True)
     reports = [_score_log(log, source, config, err) for log, source in pairs]
     if folder is not None:
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise WriteError(f"{folder}: cannot make the folder ({exc.strerror})") from None
-        write_text(folder / "score.json", reports[0].json_text())
-        write_text(folder / "visits.csv", reports[0].csv_text())
+        _save_results(folder, reports[0])
     if args.json:
         texts = [report.json_text() for report in reports]
         if len(texts) == 1:
@@ -173,6 +169,24 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
     texts = [_report_text(log, report) for log, report in zip(logs, reports, strict=True)]
     out.write("\n".join(texts))
     return 0
+
+
+def _save_results(folder: Path, report: Any) -> None:
+    """``score.json`` and ``visits.csv`` in ``folder``, both or neither: a folder made
+    here is removed again when they could not be written."""
+    made = not folder.exists()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise WriteError(f"{folder}: cannot make the folder ({exc.strerror})") from None
+    files = {folder / "score.json": report.json_text(), folder / "visits.csv": report.csv_text()}
+    try:
+        write_all(files)
+    except BaseException:
+        if made:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
 
 
 def _score_log(log: str, source: Any, config: Any, err: TextIO) -> Any:

@@ -259,6 +259,16 @@ def _can_fork() -> bool:
     return hasattr(os, "fork")
 
 
+def _quiet_rerun() -> None:
+    """Turn rerun's own log lines off for a save, unless ``RUST_LOG`` says otherwise.
+
+    rerun's file writer logs its failures itself (``ERROR ... Failed to write log
+    stream``, ``File-writer thread shut down prematurely``) on standard error, besides
+    the error it raises, which is pipemap's one line. rerun reads ``RUST_LOG`` once, as
+    it is imported, so this comes before the import."""
+    os.environ.setdefault("RUST_LOG", "off")
+
+
 def _view(
     log: Path,
     config: Callable[[], LocalizerConfig],
@@ -280,6 +290,8 @@ def _view(
     """
     from pipemap.replay import REPLAY_TOPICS, StreamSource
 
+    if target is not None:
+        _quiet_rerun()
     viewed = StreamSource(log)  # a missing, empty or foreign file: refused here
 
     def open_log() -> MessageSource:
