@@ -144,7 +144,7 @@ def test_the_commands_rebuild_the_run() -> None:
         "pipemap record --network grid:3x3 --seed 1 --start S --condition perfect "
         "--resolution 96 --images 6 --no-align-sweeps --explore map -o run.mcap"
     )
-    assert score == "pipemap score --no-two-view --allow-repeat run.mcap --threshold 0.36 --json"
+    assert score == "pipemap score --rule paper run.mcap --threshold 0.36 --json"
 
 
 @pytest.mark.parametrize("rule", list(RULES))
