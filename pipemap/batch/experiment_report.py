@@ -176,7 +176,10 @@ def _markdown(doc: dict[str, Any]) -> str:
         "In every condition the robot measures each junction's exits with its own range "
         "sensors, placed or autonomous, and its logged node events hold only what it "
         "measured; pipemap's defaults check those exits against the map's ports, the "
-        "paper's rule compares images alone.",
+        "paper's rule compares images alone. Every run is lit by the robot's lamp "
+        "(`pipemap record`'s default lighting; the paper's simulation was evenly lit): "
+        "the localizer normalises the lamp-lit sweeps under both rules (see "
+        "docs/lighting.md).",
         "",
         "Every table of decisions shows both rules side by side; the pair statistics "
         "(Table 1, Figure 7, the pairs of Table 2) compare sweeps by the similarity alone "
