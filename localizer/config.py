@@ -1,5 +1,5 @@
 """The localizer's settings: :class:`LocalizerConfig`, and :data:`PAPER`, the paper's
-own rules. What each rule does: :mod:`localizer.localizer`."""
+decision rule. What each rule does: :mod:`localizer.localizer`."""
 
 from __future__ import annotations
 
@@ -13,17 +13,23 @@ from pipemap.localizer.ports import PORT_TOLERANCE_RAD
 from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.twoview import TwoViewConfig
 
-__all__ = ["DEFAULT_THRESHOLD", "PAPER", "LocalizerConfig"]
+__all__ = ["DEFAULT_THRESHOLD", "PAPER", "PIPEMAP_CHECKS", "LocalizerConfig"]
 
 #: The localizer's default threshold: the paper's (see :mod:`.presets`).
 DEFAULT_THRESHOLD = PAPER_THRESHOLD
 
+#: The checks pipemap adds to the paper's decision, each a switch of
+#: :class:`LocalizerConfig`; the paper's rule (:meth:`LocalizerConfig.paper_rule`,
+#: :data:`PAPER`) has none of them.
+PIPEMAP_CHECKS = ("distinct_consecutive", "two_view", "verify", "port_check", "odometry_check")
+
 
 @dataclass(frozen=True)
 class LocalizerConfig:
-    """Settings of the localizer; the defaults are the paper's except three rules of
-    pipemap's own: ``distinct_consecutive``, ``two_view`` and ``verify``. :data:`PAPER`
-    turns all three off."""
+    """Settings of the localizer; the defaults are the paper's except the checks of
+    pipemap's own (:data:`PIPEMAP_CHECKS`): ``distinct_consecutive``, ``two_view``,
+    ``verify``, ``port_check`` and ``odometry_check``. :data:`PAPER` turns all of them
+    off."""
 
     threshold: float = DEFAULT_THRESHOLD
     active_vision: bool = True
@@ -99,6 +105,14 @@ class LocalizerConfig:
         ``lamp`` was set explicitly."""
         return self if self.lamp is not None else replace(self, lamp=lamp_lit)
 
+    def paper_rule(self) -> LocalizerConfig:
+        """These settings with the paper's decision rule (Algorithm 1): the similarity
+        threshold alone decides known or new, every known junction competes (the
+        previous visit's included), the rotation is the NCC peak shift's, and neither
+        the exits nor the dead reckoning are compared. The threshold, the similarity,
+        active vision (the paper's Algorithm 3) and the illumination stay as set."""
+        return replace(self, **dict.fromkeys(PIPEMAP_CHECKS, False))
+
     def __post_init__(self) -> None:
         if not -1.0 <= self.threshold <= 1.0:
             raise LocalizerError(f"threshold must be in [-1, 1], got {self.threshold}")
@@ -124,7 +138,7 @@ class LocalizerConfig:
             )
 
 
-#: The paper's rules: every known junction competes (the previous visit's included),
-#: the threshold decides, the rotation is the NCC peak shift's, and exits are not
-#: compared.
-PAPER = LocalizerConfig(distinct_consecutive=False, two_view=False, verify=False, port_check=False)
+#: The paper's decision rule at the paper's threshold (see
+#: :meth:`LocalizerConfig.paper_rule`): ``pipemap score --rule paper``, the batch rule
+#: ``paper``.
+PAPER = LocalizerConfig().paper_rule()

@@ -61,7 +61,7 @@ def test_the_experiment_writes_every_table_and_figure(experiment: Path) -> None:
         assert (experiment / name).stat().st_size > 0, name
     doc = json.loads((experiment / "experiment.json").read_text())
     assert doc["settings"] == {"resolution_px": 32, "seed": 0, "threshold": 0.36}
-    assert doc["rules"]["paper"]["flags"] == ["--no-two-view", "--allow-repeat"]
+    assert doc["rules"]["paper"]["flags"] == ["--rule", "paper"]
     assert doc["rules"]["default"]["flags"] == []
     assert set(doc["conditions"]) == {"paper", "aligned"}
     for runs in doc["conditions"].values():
@@ -80,10 +80,13 @@ def test_the_experiment_writes_every_table_and_figure(experiment: Path) -> None:
         assert heading in text
     assert "0.700 ± 0.157" in text  # the paper's numbers, beside ours
     # Every table of decisions names its rule, both side by side.
-    assert "`pipemap score --no-two-view --allow-repeat`" in text
+    assert "`pipemap score --rule paper`" in text
     assert "`pipemap score` (no flags)" in text
     assert text.count("| paper's rule: right |") == 3  # decisions, Figure 6, starts
-    assert "pipemap's defaults: right | map" in text and "Map correct from" in text
+    assert "| pipemap's defaults: right | pipemap's defaults: false merges |" in text
+    assert "pipemap's defaults: right | pipemap's defaults: map |" in text
+    assert "Map correct from" in text
+    assert "exits with its own range sensors" in text
     # The batch's own files: the run folders and the table.
     with (experiment / "results.csv").open() as f:
         assert sum(1 for _ in f) == 1 + 38

@@ -27,17 +27,21 @@ class Rule:
     distinct_consecutive: bool = True
     two_view: bool = True
     verify: bool = True
+    #: The paper's rule (:meth:`localizer.LocalizerConfig.paper_rule`), which turns
+    #: every check of pipemap's off.
+    paper: bool = False
 
     def config(self, threshold: float) -> LocalizerConfig:
         """The localizer's settings of ``pipemap score FLAGS --threshold threshold``."""
         from pipemap.localizer import LocalizerConfig
 
-        return LocalizerConfig(
+        config = LocalizerConfig(
             threshold=threshold,
             distinct_consecutive=self.distinct_consecutive,
             two_view=self.two_view,
             verify=self.verify,
         )
+        return config.paper_rule() if self.paper else config
 
     def command(self) -> str:
         """``pipemap score`` with this rule's flags, as a user would type it."""
@@ -57,12 +61,11 @@ RULES: dict[str, Rule] = {
         ),
         Rule(
             "paper",
-            ("--no-two-view", "--allow-repeat"),
+            ("--rule", "paper"),
             "the paper's Algorithm 1: the similarity threshold decides, every known "
-            "junction competes, the rotation is the NCC peak shift's",
-            distinct_consecutive=False,
-            two_view=False,
-            verify=False,
+            "junction competes (the previous visit's too), the rotation is the NCC peak "
+            "shift's; none of pipemap's checks (two-view, ports, odometry)",
+            paper=True,
         ),
         Rule(
             "no-verify",

@@ -16,6 +16,7 @@ from pipemap.cli.localizer_options import (
     fast_config,
     illumination_setting,
     port_check,
+    rule_config,
     two_view_settings,
 )
 from pipemap.localizer import LocalizerConfig, SetMatch, dumps_document
@@ -104,7 +105,7 @@ def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         port_check=port_check(args),
         lamp=illumination_setting(args),
     )
-    doc = api.map_image_sets(args.dirs, config, args.fov_deg, args.keep_top)
+    doc = api.map_image_sets(args.dirs, rule_config(args, config), args.fov_deg, args.keep_top)
     if args.json:
         out.write(dumps_document(doc))
         return 0

@@ -18,7 +18,7 @@ from pipemap.localizer.presets import (
 )
 
 if TYPE_CHECKING:
-    from pipemap.localizer import FastConfig
+    from pipemap.localizer import FastConfig, LocalizerConfig
 
 __all__ = [
     "add_rule_options",
@@ -29,6 +29,7 @@ __all__ = [
     "fast_config",
     "illumination_setting",
     "port_check",
+    "rule_config",
     "two_view_settings",
 ]
 
@@ -118,8 +119,18 @@ def fast_config(args: argparse.Namespace) -> FastConfig:
 
 
 def add_rule_options(p: argparse.ArgumentParser) -> None:
-    """The flags that turn pipemap's own localizer rules back into the paper's:
-    ``--allow-repeat``, ``--no-verify`` and ``--no-two-view``."""
+    """The decision rule: ``--rule paper`` (the paper's), and the flags that turn
+    pipemap's own checks off one by one: ``--allow-repeat``, ``--no-verify``,
+    ``--no-two-view``, ``--no-port-check`` and ``--no-odometry-check``."""
+    p.add_argument(
+        "--rule",
+        choices=["default", "paper"],
+        default="default",
+        help="paper: the paper's decision rule (its Algorithm 1), none of pipemap's checks: "
+        "the similarity threshold decides, every known junction competes, the NCC rotation, "
+        "no port or odometry check (= --no-two-view --allow-repeat --no-port-check "
+        "--no-odometry-check); default: pipemap's, with the checks the flags below turn off",
+    )
     p.add_argument(
         "--allow-repeat",
         action="store_true",
@@ -167,6 +178,11 @@ def add_illumination(p: argparse.ArgumentParser) -> None:
         "when the log's camera had its lamp on, or when the image folders' sweep.txt say "
         "'lighting: lamp' (pipemap sim --save-sweeps writes it), else even",
     )
+
+
+def rule_config(args: argparse.Namespace, config: LocalizerConfig) -> LocalizerConfig:
+    """``config`` under the rule ``--rule`` names."""
+    return config.paper_rule() if getattr(args, "rule", "default") == "paper" else config
 
 
 def port_check(args: argparse.Namespace) -> bool:

@@ -21,6 +21,7 @@ from pipemap.cli.localizer_options import (
     illumination_setting,
     odometry_check,
     port_check,
+    rule_config,
     two_view_settings,
 )
 from pipemap.cli.outputs import output_file, output_folder, write_text
@@ -38,13 +39,13 @@ __all__ = [
 
 def localizer_config(args: argparse.Namespace) -> Any:
     """The localizer's settings from ``--threshold``, ``--no-active-vision``,
-    ``--allow-repeat``, ``--no-verify``, ``--no-two-view``, ``--no-port-check``,
+    ``--rule``, ``--allow-repeat``, ``--no-verify``, ``--no-two-view``, ``--no-port-check``,
     ``--no-odometry-check`` and the
     similarity options (``--downsample``, ``--zoom``, ...)."""
     from pipemap.localizer import LocalizerConfig
 
     two_view, verify = two_view_settings(args)
-    return LocalizerConfig(
+    config = LocalizerConfig(
         threshold=args.threshold,
         active_vision=not args.no_active_vision,
         fast=fast_config(args),
@@ -55,6 +56,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         odometry_check=odometry_check(args),
         lamp=illumination_setting(args),
     )
+    return rule_config(args, config)
 
 
 def open_source(

@@ -168,7 +168,7 @@ def test_the_table_has_a_column_per_grid_key_and_per_score(local: tuple[Path, st
     assert {r["resolution"] for r in rows} == {"32"} and {r["start"] for r in rows} == {"S"}
     table = json.loads((out / "results.json").read_text())
     assert table["runs_total"] == RUNS and len(table["runs"]) == RUNS
-    assert table["rules"]["paper"]["flags"] == ["--no-two-view", "--allow-repeat"]
+    assert table["rules"]["paper"]["flags"] == ["--rule", "paper"]
     first = table["runs"][0]
     assert isinstance(first["map_correct"], bool) and isinstance(first["seed"], int)
 
@@ -323,7 +323,7 @@ def test_batch_report_writes_grouped_tables_and_figures(local: tuple[Path, str, 
     assert done.returncode == 0, done.stderr
     text = (out / "report.md").read_text()
     assert "| network | rule | runs | failed | map correct |" in text
-    assert "`pipemap score --no-two-view --allow-repeat`" in text
+    assert "`pipemap score --rule paper`" in text
     assert "`pipemap score` (no flags)" in text
     doc = json.loads((out / "report.json").read_text())
     assert doc["by"] == ["network", "rule"] and len(doc["groups"]) == 4

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import socket
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -17,6 +18,7 @@ from pipemap.cli.app import main
 from pipemap.cli.localizer_options import apply_presets
 from pipemap.cli.parser import build_parser
 from pipemap.cli.replay_commands import localizer_config
+from pipemap.localizer import PAPER, LocalizerConfig
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -144,7 +146,7 @@ def test_the_commands_rebuild_the_run() -> None:
         "pipemap record --network grid:3x3 --seed 1 --start S --condition perfect "
         "--resolution 96 --images 6 --no-align-sweeps --explore map -o run.mcap"
     )
-    assert score == "pipemap score --no-two-view --allow-repeat run.mcap --threshold 0.36 --json"
+    assert score == "pipemap score --rule paper run.mcap --threshold 0.36 --json"
 
 
 @pytest.mark.parametrize("rule", list(RULES))
@@ -332,3 +334,32 @@ def test_a_spec_that_parses_is_valid_toml() -> None:
     block = text.split("```toml\n", 1)[1].split("```", 1)[0]
     tomllib.loads(block)
     assert parse_spec(block).points
+
+
+@pytest.mark.parametrize("command", ["replay", "score", "view"])
+def test_the_paper_rule_is_one_rule_on_the_command_line_in_batches_and_the_api(
+    command: str,
+) -> None:
+    args = build_parser().parse_args([command, "x.mcap", "--rule", "paper"])
+    apply_presets(args)
+    assert localizer_config(args) == RULES["paper"].config(0.36) == PAPER
+    args = build_parser().parse_args([command, "x.mcap", "--rule", "paper", "--threshold", "0.5"])
+    apply_presets(args)
+    assert localizer_config(args) == RULES["paper"].config(0.5) == replace(PAPER, threshold=0.5)
+    assert RULES["paper"].flags == ("--rule", "paper")
+
+
+def test_map_takes_the_paper_rule(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """``pipemap map --rule paper`` hands :data:`PAPER` to ``api.map_image_sets``."""
+    from pipemap.cli import folder_commands
+
+    given = []
+
+    def map_image_sets(dirs: list[str], config: object, *rest: object) -> dict[str, list[str]]:
+        given.append(config)
+        return {"visits": [], "edges": [], "nodes": []}
+
+    monkeypatch.setattr(folder_commands.api, "map_image_sets", map_image_sets)
+    for flags in (["--rule", "paper"], []):
+        assert main(["map", str(tmp_path), *flags]) == 0
+    assert given == [PAPER, LocalizerConfig()]
