@@ -135,6 +135,7 @@ __all__ = [
     "replay",
     "save_results_log",
     "score",
+    "simulate",
 ]
 
 
@@ -357,6 +358,43 @@ def record(
     network = build_network(settings.network, seed=settings.seed)
     check_world_fits(network, settings.network)
     return record_run(target, settings, network, __version__, progress, overwrite, observer, inline)
+
+
+def simulate(
+    folder: str | Path,
+    settings: RecordSettings,
+    overwrite: bool = False,
+    progress: Callable[[Progress], None] | None = None,
+) -> RecordResult:
+    """Run ``settings`` as :func:`record` does, the same episode on the same seed, but
+    write no log: each junction visit's sweep goes to ``folder`` as ``0001``, ``0002``,
+    ... in the paper's image-set layout (:mod:`pipemap.sweep_folders`), which
+    :func:`map_image_sets` maps. ``folder`` is made if need be; sweep folders of an
+    earlier run in it are refused, or replaced with ``overwrite``. Loads the
+    simulator (``pipemap[sim]``)."""
+    from pipemap import __version__
+    from pipemap.recorder import record_run
+    from pipemap.sim.network import build_network
+    from pipemap.sim.world_budget import check_world_fits
+    from pipemap.sweep_folders import SweepFolders, clear_earlier_sweeps, earlier_sweeps
+
+    target = Path(folder)
+    if target.is_dir() and earlier_sweeps(target) and not overwrite:
+        raise InputError(f"{target}: holds the sweeps of an earlier run; refusing to replace them")
+    network = build_network(settings.network, seed=settings.seed)
+    check_world_fits(network, settings.network)
+    if settings.start is not None and settings.start not in network.labels:
+        raise InputError(
+            f"--start {settings.start}: no such node in {settings.network} "
+            f"({', '.join(network.labels)})"
+        )
+    settings.deposits(network)  # too many for the network: an error before any work
+    clear_earlier_sweeps(target)
+    saver = SweepFolders(target, "lamp" if settings.lamp_strength > 0.0 else "even")
+    try:
+        return record_run(None, settings, network, __version__, progress, observer=saver)
+    finally:
+        saver.close()
 
 
 def import_bag(

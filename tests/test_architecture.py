@@ -84,6 +84,14 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.sim",
         "pipemap.localizer",
         "pipemap.imagesets",
+        "pipemap.sweep_folders",
+        "pipemap.errors",
+    ),
+    # A simulated run's sweeps written as image-set folders (``pipemap sim``).
+    "pipemap.sweep_folders": (
+        "pipemap.imagesets",
+        "pipemap.recorder",
+        "pipemap.sim",
         "pipemap.errors",
     ),
     # Batch experiments: below the command line only, above every layer.

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -19,17 +18,19 @@ from typing import Any, TextIO
 
 from pipemap import __version__
 from pipemap.cli.exits import stop_signals, stopped_status
-from pipemap.cli.run_settings import check_condition_flags, explore_policy
+from pipemap.cli.run_settings import check_condition_flags, explore_policy, record_settings
 from pipemap.errors import InputError, ViewerError
 
-__all__ = ["run_info", "run_record"]
+__all__ = ["progress_printer", "run_info", "run_record"]
 
 
 #: A world that takes longer than this to build says how far it has come.
 _QUIET_BUILD_S = 2.0
 
 
-def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
+def progress_printer(err: TextIO, doing: str = "recording") -> Callable[[Any], None] | None:
+    """On a terminal, a line that says how far a run has come (``doing``: what it
+    does), and how far a world that is slow to build has been built."""
     if not err.isatty():
         return None
     started: list[float] = []
@@ -43,7 +44,7 @@ def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
                 err.flush()
             return
         err.write(
-            f"\rrecording: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
+            f"\r{doing}: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
             f"{p.visits} node visits "
         )
         err.flush()
@@ -93,8 +94,6 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     """Validate, run the episode while writing its log, print a summary."""
     from pipemap import api
     from pipemap.cli.outputs import output_file
-    from pipemap.recorder import RecordSettings
-    from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
     from pipemap.sim.world_budget import check_world_fits
 
@@ -118,33 +117,14 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         from pipemap.cli.view_command import check_view_target
 
         view_target = check_view_target(target, args.save, args.force, args.connect)
-    from pipemap.recorder.online import Explore
-
-    settings = RecordSettings(
-        network=args.network,
-        start=args.start,
-        seed=args.seed,
-        condition=Condition(args.condition),
-        resolution_px=args.resolution,
-        images_per_sweep=args.images,
-        align_sweeps=args.align_sweeps,
-        threshold=args.threshold,
-        explore=Explore(explore_policy(args)),
-        lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
-        tilt_rad=math.radians(args.tilt_deg),
-        obstacles=args.obstacles,
-        motor_faults=args.motor_faults,
-        image_format=args.image_format,
-        jpeg_quality=90 if args.jpeg_quality is None else args.jpeg_quality,
-        alike=args.alike,
-    )
+    settings = record_settings(args)
     settings.deposits(network)  # too many for the network: an error before any work
     live = None
     if args.view and not args.save:
         from pipemap.cli.view_command import live_view
 
         live = live_view(settings.metadata(network, __version__), args.threshold, args.connect)
-    progress = _progress_printer(err)
+    progress = progress_printer(err)
     try:
         with stop_signals():
             result = api.record(target, settings, args.force, progress, live)
