@@ -207,6 +207,7 @@ def replay(
     config: LocalizerConfig | None = None,
     progress: Callable[[int, int | None], None] | None = None,
     keep_images: bool = False,
+    keep_prepared: bool = True,
 ) -> ReplayResult:
     """Rebuild the map of ``log`` with a new localizer, from its ``/robot`` topics only.
 
@@ -219,22 +220,28 @@ def replay(
     its map, not its images (a 400 px sweep is 938 KiB: 2 GB for 2 000 visits);
     ``log.visits()`` gives them again on demand. ``keep_images`` keeps them, for
     ``result.visit_sets``. The visits as the matcher prepared them (83 KiB each, for
-    pair statistics) are kept either way.
+    pair statistics) are kept unless ``keep_prepared`` is false.
     """
     from pipemap.replay import REPLAY_TOPICS
     from pipemap.replay import replay as _replay
 
-    return _replay(_source(log, REPLAY_TOPICS), config, progress, keep_sets=keep_images)
+    source = _source(log, REPLAY_TOPICS)
+    return _replay(source, config, progress, keep_sets=keep_images, keep_prepared=keep_prepared)
 
 
 def score(
-    log: Log | MessageSource | str | Path, config: LocalizerConfig | None = None
+    log: Log | MessageSource | str | Path,
+    config: LocalizerConfig | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
 ) -> ScoreReport:
-    """Replay ``log`` and score its map against the log's ground truth (``/truth``)."""
+    """Replay ``log`` and score its map against the log's ground truth (``/truth``);
+    ``progress`` as :func:`replay` takes it. The replay's notes are in
+    ``report.replay_notes``, what of the truth could not be read in
+    ``report.truth_notes``."""
     from pipemap.replay import SCORE_TOPICS
     from pipemap.replay import score as _score
 
-    return _score(_source(log, SCORE_TOPICS), config)
+    return _score(_source(log, SCORE_TOPICS), config, progress)
 
 
 def match_image_sets(

@@ -1,0 +1,94 @@
+"""Each command goes through :mod:`pipemap.api`, as a script does: the api function is
+replaced by a spy that stops the command, and the spy must be called, with the
+settings the flags parsed into. A command that goes around the api again fails here."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from pipemap import api
+from pipemap.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+STORED = ROOT / "recordings" / "paper_autonomous.mcap"
+
+
+class Called(Exception):
+    """What the spy raises: the command got as far as the api."""
+
+
+def _spy(
+    monkeypatch: pytest.MonkeyPatch, name: str
+) -> list[tuple[tuple[Any, ...], dict[str, Any]]]:
+    calls: list[tuple[tuple[Any, ...], dict[str, Any]]] = []
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        calls.append((args, kwargs))
+        raise Called(name)
+
+    monkeypatch.setattr(api, name, spy)
+    return calls
+
+
+def test_record_calls_api_record_with_the_parsed_settings(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls = _spy(monkeypatch, "record")
+    target = tmp_path / "run.mcap"
+    argv = ["record", "--network", "paper", "--resolution", "32", "--images", "9"]
+    with pytest.raises(Called):
+        main([*argv, "--seed", "4", "--lighting", "even", "-o", str(target)])
+    (path, settings, *_), _ = calls[0]
+    assert Path(path) == target
+    assert (settings.network, settings.resolution_px, settings.images_per_sweep) == ("paper", 32, 9)
+    assert (settings.seed, settings.lamp_strength) == (4, 0.0)
+
+
+def test_sim_calls_api_simulate_with_the_parsed_settings(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls = _spy(monkeypatch, "simulate")
+    target = tmp_path / "sweeps"
+    argv = ["sim", "--network", "tree:3", "--resolution", "48", "--condition", "noise"]
+    with pytest.raises(Called):
+        main([*argv, "--tilt-deg", "2", "--save-sweeps", str(target)])
+    (folder, settings, *_), _ = calls[0]
+    assert Path(folder) == target
+    assert (settings.network, settings.resolution_px, settings.condition.value) == (
+        "tree:3",
+        48,
+        "noise",
+    )
+    assert settings.tilt_rad == pytest.approx(0.0349, abs=1e-4)
+
+
+def test_replay_calls_api_replay_with_the_parsed_config(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = _spy(monkeypatch, "replay")
+    with pytest.raises(Called):
+        main(["replay", str(STORED), "--threshold", "0.5"])
+    (_, config, *_), _ = calls[0]
+    assert config.threshold == 0.5
+
+
+@pytest.mark.parametrize("logs", [1, 2])
+def test_score_calls_api_score_for_each_log(monkeypatch: pytest.MonkeyPatch, logs: int) -> None:
+    calls = _spy(monkeypatch, "score")
+    with pytest.raises(Called):
+        main(["score", *[str(STORED)] * logs, "--threshold", "0.42"])
+    (_, config, *_), _ = calls[0]
+    assert config.threshold == 0.42
+
+
+def test_view_replays_through_api_replay(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from pipemap.cli import view_command
+
+    # In one process (the forked child would report the spy's exception as its own).
+    monkeypatch.setattr(view_command, "_can_fork", lambda: False)
+    calls = _spy(monkeypatch, "replay")
+    with pytest.raises(Called):
+        main(["view", str(STORED), "--threshold", "0.3", "--save", str(tmp_path / "v.rrd")])
+    (_, config, *_), _ = calls[0]
+    assert config.threshold == 0.3
