@@ -9,6 +9,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING, Any
 
+from pipemap.defaults import LAMP_STRENGTHS
 from pipemap.errors import InputError
 
 if TYPE_CHECKING:  # the simulator loads lazily: pipemap --help stays instant
@@ -68,7 +69,7 @@ def record_settings(args: argparse.Namespace) -> RecordSettings:
         "images_per_sweep": args.images,
         "align_sweeps": args.align_sweeps,
         "explore": Explore(explore_policy(args)),
-        "lamp_strength": 1.0 if args.lighting == "lamp" else 0.0,
+        "lamp_strength": LAMP_STRENGTHS[args.lighting],
         "tilt_rad": math.radians(args.tilt_deg),
         "obstacles": args.obstacles,
         "motor_faults": args.motor_faults,
