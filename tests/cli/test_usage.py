@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import io
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -103,6 +104,35 @@ def test_a_downsampling_beyond_the_logs_images_is_refused(tmp_path: Path) -> Non
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and "downsampling by 1000" in done.stderr
     assert "at most" in done.stderr and done.stdout == ""
+
+
+def test_a_downsampling_beyond_the_logs_images_is_refused_before_any_sweep(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The log's settings give its images' size: the replay stops at its first message,
+    # before it has read, let alone prepared, a sweep.
+    from pipemap import api
+    from pipemap.errors import InputError
+    from pipemap.localizer import FastConfig, LocalizerConfig
+    from pipemap.recorder import Topic
+    from pipemap.replay import SCORE_TOPICS, StreamSource
+
+    source = StreamSource(LOG, SCORE_TOPICS)
+    read: list[object] = []
+    stream = source.robot_stream
+
+    def counted() -> Iterator[object]:
+        for m in stream():
+            read.append(m)
+            yield m
+
+    monkeypatch.setattr(source, "robot_stream", counted)
+    config = LocalizerConfig(fast=FastConfig(fine_downsample=1000))
+    with pytest.raises(InputError, match=r"downsampling by 1000 .* at most "):
+        api.score(source, config)
+    # Only the few the replay's reordering window holds: not one sweep's images.
+    images = [m for m in read if getattr(m, "topic", None) == Topic.IMAGE]
+    assert 1 <= len(read) <= 8 and len(images) < 6
 
 
 class Terminal(io.StringIO):
