@@ -45,6 +45,7 @@ from pipemap.localizer import (
 )
 
 if TYPE_CHECKING:
+    from pipemap.localizer import RouteStep, TopoMap
     from pipemap.recorder import (
         Explore,
         Integrity,
@@ -64,6 +65,8 @@ if TYPE_CHECKING:
         ReplayResult,
         ScoreReport,
     )
+    from pipemap.replay.info import log_info
+    from pipemap.routes import load_map, route, route_document
     from pipemap.sim.episode import Condition
 
 #: Names of this module loaded on first use (PEP 562): the image-set commands never
@@ -86,6 +89,13 @@ _LAZY = {
     "RecordResult": "pipemap.recorder.session",
     "RecordSettings": "pipemap.recorder.settings",
     "RunObserver": "pipemap.recorder.session",
+    # A map document's routes (``pipemap route``) and a log's description (``info``).
+    "RouteStep": "pipemap.localizer",
+    "TopoMap": "pipemap.localizer",
+    "load_map": "pipemap.routes",
+    "route": "pipemap.routes",
+    "route_document": "pipemap.routes",
+    "log_info": "pipemap.replay.info",
 }
 
 
@@ -136,6 +146,12 @@ __all__ = [
     "save_results_log",
     "score",
     "simulate",
+    "RouteStep",
+    "TopoMap",
+    "load_map",
+    "log_info",
+    "route",
+    "route_document",
 ]
 
 

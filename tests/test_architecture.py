@@ -88,8 +88,11 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.localizer",
         "pipemap.imagesets",
         "pipemap.sweep_folders",
+        "pipemap.routes",
         "pipemap.errors",
     ),
+    # Routes through a map document (``pipemap route``).
+    "pipemap.routes": ("pipemap.localizer", "pipemap.errors"),
     # A simulated run's sweeps written as image-set folders (``pipemap sim``).
     "pipemap.sweep_folders": (
         "pipemap.imagesets",

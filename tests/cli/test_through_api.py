@@ -92,3 +92,25 @@ def test_view_replays_through_api_replay(tmp_path: Path, monkeypatch: pytest.Mon
         main(["view", str(STORED), "--threshold", "0.3", "--save", str(tmp_path / "v.rrd")])
     (_, config, *_), _ = calls[0]
     assert config.threshold == 0.3
+
+
+def test_info_calls_api_log_info(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = _spy(monkeypatch, "log_info")
+    with pytest.raises(Called):
+        main(["info", str(STORED)])
+    (path,), _ = calls[0]
+    assert Path(path) == STORED
+
+
+def test_route_calls_api_load_map_and_route(monkeypatch: pytest.MonkeyPatch) -> None:
+    document = ROOT / "recordings" / "paper_autonomous.map.json"
+    loads = _spy(monkeypatch, "load_map")
+    with pytest.raises(Called):
+        main(["route", str(document), "--from", "0", "--to", "3"])
+    assert Path(loads[0][0][0]) == document
+    monkeypatch.undo()
+    routes = _spy(monkeypatch, "route")
+    with pytest.raises(Called):
+        main(["route", str(document), "--from", "0", "--to", "3"])
+    (_, start, goal, *_), _ = routes[0]
+    assert (start, goal) == (0, 3)

@@ -161,24 +161,6 @@ def test_a_slow_step_says_so_and_how_long_it_took(monkeypatch: pytest.MonkeyPatc
     assert piped.getvalue() == ""
 
 
-def test_sim_announces_a_slow_world_build(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every world counts as slow here: the notice comes before the run and its end."""
-    import contextlib
-
-    from pipemap.cli import main
-
-    monkeypatch.setattr(slow, "SLOW_S", 0.0)
-    out = tmp_path / "sweeps"
-    argv = ["sim", "--network", "paper", "--resolution", "32", "--images", "2"]
-    err = Terminal()
-    with contextlib.redirect_stderr(err):
-        code = main([*argv, "--save-sweeps", str(out)])
-    lines = err.getvalue().splitlines()
-    assert code == 0, lines
-    assert lines[0].startswith("pipemap: building the world of paper (7 junctions, 6 pipes)")
-    assert lines[1].startswith("pipemap: world built in ")
-
-
 ACTIVE = ROOT / "recordings" / "paper_active.mcap"
 
 
