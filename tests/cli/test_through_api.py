@@ -114,3 +114,29 @@ def test_route_calls_api_load_map_and_route(monkeypatch: pytest.MonkeyPatch) -> 
         main(["route", str(document), "--from", "0", "--to", "3"])
     (_, start, goal, *_), _ = routes[0]
     assert (start, goal) == (0, 3)
+
+
+def test_a_batch_run_records_and_scores_through_the_api(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``pipemap batch``'s workers make each run as a script does: api.record, then
+    api.score of the log, with the settings of the SPEC's grid point."""
+    import shutil
+
+    from pipemap.batch.run import run_recording
+    from pipemap.batch.spec import parse_spec
+    from pipemap.recorder import RecordResult
+
+    spec = parse_spec('[grid]\nnetwork = ["paper"]\nresolution = [32]\nthreshold = [0.4]\n')
+    recorded: list[Any] = []
+
+    def record(path: Path, settings: Any, **kwargs: Any) -> RecordResult:
+        recorded.append(settings)
+        shutil.copyfile(STORED, path)  # a log to score
+        return RecordResult("finished", True, 13, 13, 1.0, 1, 1, frozenset("S"), 7)
+
+    monkeypatch.setattr(api, "record", record)
+    scores = _spy(monkeypatch, "score")
+    with pytest.raises(Called):
+        run_recording(spec.points)
+    assert recorded == [spec.points[0].record_settings()]
+    (_, config), _ = scores[0]
+    assert config.threshold == 0.4
