@@ -111,7 +111,8 @@ def add_sim(sub: Subparsers) -> None:
         "sim",
         help="run a simulated exploration and save its sweeps",
         description="Explore a pipe network and save every junction sweep as DIR/0001, "
-        "DIR/0002, ... in the paper's folder layout. The placed conditions (perfect, the "
+        "DIR/0002, ... in the paper's folder layout: the run record makes on the same flags, "
+        "with the localizer online, but no log. The placed conditions (perfect, the "
         "default; noise, active, entrance) set the robot down at each junction along the "
         "paper's right-most-branch tour; autonomous drives it, exploring by --explore.",
     )
