@@ -45,6 +45,14 @@ from pipemap.localizer import (
 )
 
 if TYPE_CHECKING:
+    from pipemap.interchange import (
+        export_geojson,
+        export_ros2,
+        export_tum,
+        import_bag,
+        save_results_log,
+    )
+    from pipemap.localizer import RouteStep, TopoMap
     from pipemap.recorder import (
         Explore,
         Integrity,
@@ -64,6 +72,8 @@ if TYPE_CHECKING:
         ReplayResult,
         ScoreReport,
     )
+    from pipemap.replay.info import log_info
+    from pipemap.routes import load_map, route, route_document
     from pipemap.sim.episode import Condition
 
 #: Names of this module loaded on first use (PEP 562): the image-set commands never
@@ -86,6 +96,20 @@ _LAZY = {
     "RecordResult": "pipemap.recorder.session",
     "RecordSettings": "pipemap.recorder.settings",
     "RunObserver": "pipemap.recorder.session",
+    # A map document's routes (``pipemap route``) and a log's description (``info``).
+    "RouteStep": "pipemap.localizer",
+    "TopoMap": "pipemap.localizer",
+    "load_map": "pipemap.routes",
+    "route": "pipemap.routes",
+    "route_document": "pipemap.routes",
+    "log_info": "pipemap.replay.info",
+    # ROS 2 bags, TUM trajectories, GeoJSON and Foxglove results in and out.
+    "import_bag": "pipemap.interchange",
+    "ros2_available": "pipemap.interchange",
+    "export_ros2": "pipemap.interchange",
+    "export_tum": "pipemap.interchange",
+    "save_results_log": "pipemap.interchange",
+    "export_geojson": "pipemap.interchange",
 }
 
 
@@ -135,6 +159,13 @@ __all__ = [
     "replay",
     "save_results_log",
     "score",
+    "simulate",
+    "RouteStep",
+    "TopoMap",
+    "load_map",
+    "log_info",
+    "route",
+    "route_document",
 ]
 
 
@@ -206,6 +237,7 @@ def replay(
     config: LocalizerConfig | None = None,
     progress: Callable[[int, int | None], None] | None = None,
     keep_images: bool = False,
+    keep_prepared: bool = True,
 ) -> ReplayResult:
     """Rebuild the map of ``log`` with a new localizer, from its ``/robot`` topics only.
 
@@ -218,22 +250,28 @@ def replay(
     its map, not its images (a 400 px sweep is 938 KiB: 2 GB for 2 000 visits);
     ``log.visits()`` gives them again on demand. ``keep_images`` keeps them, for
     ``result.visit_sets``. The visits as the matcher prepared them (83 KiB each, for
-    pair statistics) are kept either way.
+    pair statistics) are kept unless ``keep_prepared`` is false.
     """
     from pipemap.replay import REPLAY_TOPICS
     from pipemap.replay import replay as _replay
 
-    return _replay(_source(log, REPLAY_TOPICS), config, progress, keep_sets=keep_images)
+    source = _source(log, REPLAY_TOPICS)
+    return _replay(source, config, progress, keep_sets=keep_images, keep_prepared=keep_prepared)
 
 
 def score(
-    log: Log | MessageSource | str | Path, config: LocalizerConfig | None = None
+    log: Log | MessageSource | str | Path,
+    config: LocalizerConfig | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
 ) -> ScoreReport:
-    """Replay ``log`` and score its map against the log's ground truth (``/truth``)."""
+    """Replay ``log`` and score its map against the log's ground truth (``/truth``);
+    ``progress`` as :func:`replay` takes it. The replay's notes are in
+    ``report.replay_notes``, what of the truth could not be read in
+    ``report.truth_notes``."""
     from pipemap.replay import SCORE_TOPICS
     from pipemap.replay import score as _score
 
-    return _score(_source(log, SCORE_TOPICS), config)
+    return _score(_source(log, SCORE_TOPICS), config, progress)
 
 
 def match_image_sets(
@@ -359,85 +397,38 @@ def record(
     return record_run(target, settings, network, __version__, progress, overwrite, observer, inline)
 
 
-def import_bag(
-    bag: str | Path,
-    output: str | Path,
-    spec: BagSpec | str | Path | None = None,
+def simulate(
+    folder: str | Path,
+    settings: RecordSettings,
     overwrite: bool = False,
-) -> ImportResult:
-    """Read the ROS 2 bag ``bag`` (a rosbag2 folder or storage file, MCAP or SQLite,
-    CDR) and write it as the pipemap log ``output``, which ``replay``, ``score`` and
-    ``view`` take. ``spec`` (a :class:`~pipemap.recorder.ros2_contract.BagSpec`, or
-    the path of a TOML file of its keys) says which topics are read; docs/ros2.md is
-    the contract. Everything is checked before the log is written; without
-    ``overwrite`` an existing file is never touched. Needs ``pipemap[ros]``."""
-    from pipemap.recorder.ros2_contract import BagSpec, load_spec
-    from pipemap.recorder.ros2_import import import_bag as _import_bag
-
-    target = _new_file(output, overwrite)
-    if not isinstance(spec, BagSpec):
-        spec = load_spec(spec)
+    progress: Callable[[Progress], None] | None = None,
+) -> RecordResult:
+    """Run ``settings`` as :func:`record` does, the same episode on the same seed, but
+    write no log: each junction visit's sweep goes to ``folder`` as ``0001``, ``0002``,
+    ... in the paper's image-set layout (:mod:`pipemap.sweep_folders`), which
+    :func:`map_image_sets` maps. ``folder`` is made if need be; sweep folders of an
+    earlier run in it are refused, or replaced with ``overwrite``. Loads the
+    simulator (``pipemap[sim]``)."""
     from pipemap import __version__
+    from pipemap.recorder import record_run
+    from pipemap.sim.network import build_network
+    from pipemap.sim.world_budget import check_world_fits
+    from pipemap.sweep_folders import SweepFolders, clear_earlier_sweeps, earlier_sweeps
 
-    return _import_bag(bag, target, spec, __version__)
-
-
-def ros2_available() -> None:
-    """Raise an :class:`InputError` saying how to install rosbags where it is missing
-    (reading and writing bags needs it)."""
-    from pipemap.recorder.ros2_bag import typestore
-
-    typestore()
-
-
-def export_ros2(log: str | Path, output: str | Path, overwrite: bool = False) -> ExportResult:
-    """Write the pipemap log ``log`` as a ROS 2 bag: the rosbag2 folder ``output``
-    (metadata.yaml, MCAP storage, CDR) with the run's images, camera joint, IMU,
-    ranges, wheel odometry, ``/tf`` and sweep markers (docs/ros2.md). ``pipemap
-    import`` reads it back to a log that replays to the same map. Without
-    ``overwrite`` an existing folder is never touched. Needs ``pipemap[ros]``."""
-    from pipemap.recorder.ros2_export import export_ros2 as _export_ros2
-
-    return _export_ros2(log, output, overwrite)
-
-
-def export_tum(log: str | Path, folder: str | Path) -> TumResult:
-    """Write the log's dead-reckoned (``estimated.tum``) and true (``truth.tum``)
-    trajectories in the TUM format that evo reads, and each visit's junction
-    position (``junctions.csv``), into ``folder``."""
-    from pipemap.recorder.trajectory import export_tum as _export_tum
-
-    return _export_tum(log, folder)
-
-
-def save_results_log(
-    result: ReplayResult, output: str | Path, threshold: float | None = None
-) -> dict[str, int]:
-    """Write a replay's results as an MCAP log that Foxglove shows: the estimated pose
-    per visit (``foxglove.PoseInFrame`` on ``/replay/pose``, and ``/tf``), the map as
-    it grows (``foxglove.SceneUpdate``) and the decisions (``pipemap.Decision``);
-    see :mod:`pipemap.replay.results_log`. Returns the messages per topic."""
-    from pipemap.replay.results_log import write_results_log
-
-    return write_results_log(
-        result, output, LocalizerConfig().threshold if threshold is None else threshold
-    )
-
-
-def export_geojson(
-    log: Log | MessageSource | str | Path,
-    output: str | Path,
-    config: LocalizerConfig | None = None,
-) -> int:
-    """Replay ``log`` and write its map as GeoJSON for GIS tools: junctions as points
-    placed by the robot's dead reckoning, pipes as lines with their ports and driven
-    lengths, in a local metric frame the file names (:mod:`pipemap.replay.geojson`).
-    ``log`` may instead be a map document's path (``.json``, as ``pipemap replay -o``
-    writes it): its junctions are then placed by chaining its ports and pipe lengths.
-    Returns the features written."""
-    from pipemap.replay.geojson import read_map_document, write_geojson
-
-    if isinstance(log, str | Path) and Path(log).suffix == ".json":
-        return write_geojson(read_map_document(log), output, Path(log).stem)
-    name = Path(log).stem if isinstance(log, str | Path) else "pipemap"
-    return write_geojson(replay(log, config), output, name)
+    target = Path(folder)
+    if target.is_dir() and earlier_sweeps(target) and not overwrite:
+        raise InputError(f"{target}: holds the sweeps of an earlier run; refusing to replace them")
+    network = build_network(settings.network, seed=settings.seed)
+    check_world_fits(network, settings.network)
+    if settings.start is not None and settings.start not in network.labels:
+        raise InputError(
+            f"--start {settings.start}: no such node in {settings.network} "
+            f"({', '.join(network.labels)})"
+        )
+    settings.deposits(network)  # too many for the network: an error before any work
+    clear_earlier_sweeps(target)
+    saver = SweepFolders(target, "lamp" if settings.lamp_strength > 0.0 else "even")
+    try:
+        return record_run(None, settings, network, __version__, progress, observer=saver)
+    finally:
+        saver.close()

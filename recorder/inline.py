@@ -26,7 +26,7 @@ from pipemap.recorder.convert import LogRecord, RecordConverter
 from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.writer import LogWriter
 
-__all__ = ["FinishesOnExit", "InlineWriter", "RecordWriter"]
+__all__ = ["FinishesOnExit", "InlineWriter", "NoLog", "RecordWriter"]
 
 
 class RecordWriter(Protocol):
@@ -138,3 +138,25 @@ class InlineWriter(FinishesOnExit):
     def _close(self) -> None:
         with contextlib.suppress(OSError):
             self._output.close()
+
+
+class NoLog(FinishesOnExit):
+    """A run without a log: every record is taken and dropped. ``pipemap sim`` runs the
+    episode a recording runs, through this, and keeps the sweeps its observer saw."""
+
+    def __init__(self) -> None:
+        self._finished = True  # nothing to finish, whatever ends the run
+        self.messages = 0
+
+    def put(self, record: LogRecord) -> None:
+        """Drop ``record``."""
+
+    def send(self) -> None:
+        """Nothing to pass on."""
+
+    def finish(self, result_metadata: Mapping[str, str]) -> int:
+        """Nothing to close: no message was written."""
+        return 0
+
+    def _close(self) -> None:
+        """Nothing to let go of."""

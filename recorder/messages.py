@@ -29,6 +29,7 @@ from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
+from pipemap.defaults import IMAGE_FORMAT, JPEG_QUALITY
 from pipemap.pngcheck import png_problem
 from pipemap.recorder import schemas
 
@@ -96,8 +97,8 @@ class ImageEncoding:
     """How the camera's images are stored: ``png`` (lossless) or ``jpeg`` at
     ``jpeg_quality`` (1..100, OpenCV's scale)."""
 
-    image_format: str = "png"
-    jpeg_quality: int = 90
+    image_format: str = IMAGE_FORMAT
+    jpeg_quality: int = JPEG_QUALITY
 
     def __post_init__(self) -> None:
         if self.image_format not in IMAGE_FORMATS:

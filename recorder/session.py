@@ -40,7 +40,7 @@ from pipemap.localizer import (
 from pipemap.recorder import messages
 from pipemap.recorder.background import BackgroundWriter
 from pipemap.recorder.convert import LogRecord, ReadyMessage, SweepDone
-from pipemap.recorder.inline import InlineWriter, RecordWriter
+from pipemap.recorder.inline import InlineWriter, NoLog, RecordWriter
 from pipemap.recorder.online import NoProbes, OnlineLocalizer, gray_set, make_policy
 from pipemap.recorder.settings import RecordSettings
 from pipemap.recorder.topics import Topic
@@ -126,6 +126,9 @@ class RecordResult:
     node_count: int
     pipes_driven: int = 0
     pipe_count: int = 0
+    #: Autonomous runs: stalls the robot got past, and pipes it gave up as blocked.
+    stalls_recovered: int = 0
+    pipes_given_up: int = 0
 
 
 class _OnlineSink:
@@ -361,7 +364,7 @@ def covers(
 
 
 def record_run(
-    path: Path,
+    path: Path | None,
     settings: RecordSettings,
     network: Network,
     version: str,
@@ -377,7 +380,9 @@ def record_run(
     ``overwrite`` an existing file is never touched. ``observer``, if given, sees
     every record as the log gets it (a live view); the log is the same without it.
     ``inline`` writes the log in this process rather than a writer process (for runs
-    that share the cores, see :mod:`recorder.inline`): the same bytes.
+    that share the cores, see :mod:`recorder.inline`): the same bytes. Without a
+    ``path`` the same run is made and no log is written (``pipemap sim``: the observer
+    keeps what it needs).
     """
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
@@ -386,8 +391,15 @@ def record_run(
     localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
     deposits = settings.deposits(network)  # checked before the log is opened
     mode = "wb" if overwrite else "xb"
-    opened = InlineWriter if inline else BackgroundWriter
-    with opened(path, mode, settings.metadata(network, version)) as writer:
+    metadata = settings.metadata(network, version)
+    opened: NoLog | InlineWriter | BackgroundWriter
+    if path is None:
+        opened = NoLog()
+    elif inline:
+        opened = InlineWriter(path, mode, metadata)
+    else:
+        opened = BackgroundWriter(path, mode, metadata)
+    with opened as writer:
         sink = _OnlineSink(writer, localizer, camera, progress, observer)
         truth = messages.network_message(network, obstacles=deposits)
         sink.put(ReadyMessage.of(0, Topic.NETWORK, truth))
@@ -424,7 +436,11 @@ def record_run(
                 # it could reach (every pipe but the blocked ones).
                 covered = covers(network, deposits, sink.true_nodes, sink.true_path)
                 ok = result.status is RunStatus.FINISHED and covered
+                events = [text for _, text in result.events]
+                recovered = sum(text.startswith("stall: past it") for text in events)
+                given_up = sum(text.startswith("pipe blocked") for text in events)
             else:
+                recovered = given_up = 0
                 placed = _PlacedRun(world, settings, sink)
                 status = placed.run()
                 distance, duration = placed.distance_m, placed.robot_time_ns()
@@ -451,4 +467,6 @@ def record_run(
         pipes_driven=_pipes_driven(network, sink.true_path),
         pipe_count=len(network.pipes),
         node_count=len(network.nodes),
+        stalls_recovered=recovered,
+        pipes_given_up=given_up,
     )

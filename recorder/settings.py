@@ -13,6 +13,15 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from pipemap.defaults import (
+    IMAGE_FORMAT,
+    IMAGES_PER_SWEEP,
+    JPEG_QUALITY,
+    LAMP_STRENGTHS,
+    LIGHTING,
+    RESOLUTION_PX,
+    SEED,
+)
 from pipemap.errors import InputError, SimError
 from pipemap.localizer import DEFAULT_THRESHOLD
 from pipemap.recorder.messages import ImageEncoding
@@ -37,16 +46,16 @@ class RecordSettings:
 
     network: str
     start: str | None = None
-    seed: int = 0
+    seed: int = SEED
     condition: Condition = Condition.AUTONOMOUS
-    resolution_px: int = 400
-    images_per_sweep: int = 6
+    resolution_px: int = RESOLUTION_PX
+    images_per_sweep: int = IMAGES_PER_SWEEP
     align_sweeps: bool = True
     threshold: float = DEFAULT_THRESHOLD
     #: How the autonomous robot chooses exits (placed tours follow the paper's rule).
     explore: Explore = Explore.MAP
     #: The robot's lamp relative to full; 0.0 lights every surface evenly.
-    lamp_strength: float = 1.0
+    lamp_strength: float = LAMP_STRENGTHS[LIGHTING]
     #: The robot off level (placement conditions): see ``SimConfig.tilt_rad``.
     tilt_rad: float = 0.0
     #: Floor deposits in as many pipes, drawn from the seed (autonomous condition):
@@ -56,9 +65,9 @@ class RecordSettings:
     #: :mod:`sim.motor_faults`. 0: none, and the log is as without the setting.
     motor_faults: int = 0
     #: How the log stores the camera's images: ``png`` (lossless) or ``jpeg``.
-    image_format: str = "png"
+    image_format: str = IMAGE_FORMAT
     #: The JPEG quality (1..100) with ``image_format="jpeg"``.
-    jpeg_quality: int = 90
+    jpeg_quality: int = JPEG_QUALITY
     #: The fraction of junctions that take the look of another of their type, drawn
     #: from the seed: see :mod:`sim.lookalike`. 0: every junction its own look, and
     #: the log is as without the setting.

@@ -28,7 +28,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from pipemap.errors import LogFormatError
+from pipemap.errors import InputError, LogFormatError
 from pipemap.localizer import (
     Decision,
     FastConfig,
@@ -247,7 +247,12 @@ class _Replay:
 
     def run(self) -> ReplayResult:
         stream = self.source.robot_stream()
+        checked = False
         for m in in_order(stream) if not self.whole else iter(ordered(list(stream))):
+            if not checked:
+                # The run's settings open the log: its camera is known before any sweep.
+                _check_downsample(self.source, self.config)
+                checked = True
             named = self.events.feed(m)
             sweep = self.sweeps.feed(m)
             if self.sweeps.started is not None:
@@ -374,6 +379,18 @@ class _Replay:
             breaks=tuple(self.breaks),
             localizer=localizer,
             illumination=localizer.config.illumination if localizer.config.lamp else None,
+        )
+
+
+def _check_downsample(source: MessageSource, config: LocalizerConfig) -> None:
+    """Refuse a refinement that downsamples beyond the log's images (the localizer
+    checks each image too, for a log whose settings do not give its resolution)."""
+    factor = config.fast.fine_downsample
+    resolution = source.run_metadata().get("resolution_px", "")
+    if resolution.isdigit() and factor > int(resolution) // 2:
+        raise InputError(
+            f"{source.name}: downsampling by {factor} (--downsample) leaves less than two "
+            f"pixels of its {resolution} px wide images: at most {int(resolution) // 2}"
         )
 
 

@@ -27,6 +27,7 @@ import csv
 import io
 import json
 import statistics
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -121,6 +122,8 @@ class ScoreReport:
     blocked: BlockedPipes | None = None
     #: What of the truth could not be read (a line each); not part of the document.
     truth_notes: tuple[str, ...] = ()
+    #: The replay's notes (:attr:`ReplayResult.warnings`); not part of the document.
+    replay_notes: tuple[str, ...] = ()
     #: The true junctions that share a look (``record --alike``), each group's look's
     #: own junction first; empty when every junction looks like itself alone.
     look_alike: tuple[tuple[str, ...], ...] = ()
@@ -395,6 +398,7 @@ def score_replay(
         mapped_part_correct=mapped,
         blocked=blocked,
         truth_notes=tuple(truth_notes),
+        replay_notes=tuple(result.warnings),
         look_alike=look_alike_groups(source.run_metadata()),
         alike_visits=tuple(visit_label(v.visit_id) for v in result.visits if v.decision.alike),
     )
@@ -420,8 +424,13 @@ def _camera_angle(result: ReplayResult, sweep_id: int) -> float:
     return result.camera_angles.get(sweep_id, 0.0)
 
 
-def score(source: MessageSource, config: LocalizerConfig | None = None) -> ScoreReport:
-    """Replay ``source`` and score the result against its truth."""
+def score(
+    source: MessageSource,
+    config: LocalizerConfig | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
+) -> ScoreReport:
+    """Replay ``source`` and score the result against its truth; ``progress`` as
+    :func:`replay` takes it."""
     config = config if config is not None else LocalizerConfig()
-    result = replay(source, config, keep_sets=False)
+    result = replay(source, config, progress, keep_sets=False)
     return score_replay(result, source, config.threshold, config.fast)

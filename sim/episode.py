@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pipemap.defaults import IMAGES_PER_SWEEP
 from pipemap.errors import SimError
 from pipemap.sim.network import Network
 from pipemap.sim.plan import right_hand_tour
@@ -84,7 +85,7 @@ class SimConfig:
     condition: Condition = Condition.PERFECT
     seed: int = 0
     camera: CameraSpec = field(default_factory=CameraSpec)
-    images_per_sweep: int = 6
+    images_per_sweep: int = IMAGES_PER_SWEEP
     camera_height_m: float = 0.05
     noise_offset_m: float = 0.03
     entrance_slip: float = 0.05

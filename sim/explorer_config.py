@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from pipemap.defaults import IMAGES_PER_SWEEP
 from pipemap.sim.episode import Sweep, SweepTruth, check_tilt
 from pipemap.sim.network import Network
 from pipemap.sim.policy import RunStatus
@@ -42,7 +43,7 @@ class ExplorerConfig:
     #: mean of all of them.
     exit_depth_fraction: float = 0.8
     sweep_step_ns: int = 500_000_000
-    images_per_sweep: int = 6
+    images_per_sweep: int = IMAGES_PER_SWEEP
     #: Start each sweep at the multiple of 2*pi/N nearest the heading estimate.
     align_sweeps: bool = True
     #: Standing still this long at the start measures the gyro's bias.

@@ -42,6 +42,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from pipemap.defaults import LAMP_STRENGTHS, LIGHTING, RESOLUTION_PX
 from pipemap.errors import SimError, WriteError
 from pipemap.sim.geometry import Mesh, chamber_mesh, chamber_u_origin_rad, half_pipe_mesh
 from pipemap.sim.lookalike import LookAlike, LookTextures
@@ -84,7 +85,7 @@ FAR_M = 30.0
 class CameraSpec:
     """A pinhole camera: square images, horizontal field of view."""
 
-    resolution_px: int = 400
+    resolution_px: int = RESOLUTION_PX
     fov_rad: float = math.radians(80.0)
     #: Share of the light that comes from a lamp at the camera (inverse-square
     #: falloff from ``LAMP_REFERENCE_M``, incidence shading); the rest is uniform.
@@ -92,7 +93,7 @@ class CameraSpec:
     #: beyond the lamp's reach. 0.0 is the paper's evenly lit simulation
     #: (``--lighting even``). Under the lamp the paper's whole-image NCC cannot tell
     #: junctions apart unaided; the localizer normalises illumination (docs/lighting.md).
-    lamp_strength: float = 1.0
+    lamp_strength: float = LAMP_STRENGTHS[LIGHTING]
 
     def __post_init__(self) -> None:
         if not 16 <= self.resolution_px <= 4096:

@@ -42,11 +42,13 @@ FOLDERS: dict[str, str] = {
 #: everything below it). The most specific area of a module applies.
 ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
     "pipemap.errors": (),
+    # The defaults of a run (camera, sweep, seed, lighting), written once for every layer.
+    "pipemap.defaults": (),
     # glibc's allocator set up to keep freed memory (the CLI and batch workers call it).
     "pipemap.allocator": (),
     "pipemap": (),  # the root __init__: nothing of the project, so importing it is free
     "pipemap.localizer": ("pipemap.localizer", "pipemap.errors"),
-    "pipemap.sim": ("pipemap.sim", "pipemap.errors", "pipemap.wholefile"),
+    "pipemap.sim": ("pipemap.sim", "pipemap.errors", "pipemap.wholefile", "pipemap.defaults"),
     "pipemap.recorder": (
         "pipemap.recorder",
         "pipemap.pngcheck",
@@ -54,6 +56,7 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.sim",
         "pipemap.localizer",
         "pipemap.errors",
+        "pipemap.defaults",
     ),
     "pipemap.replay": (
         "pipemap.replay",
@@ -84,6 +87,27 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.sim",
         "pipemap.localizer",
         "pipemap.imagesets",
+        "pipemap.sweep_folders",
+        "pipemap.routes",
+        "pipemap.interchange",
+        "pipemap.errors",
+    ),
+    # Other tools' formats in and out (ROS 2 bags, TUM, GeoJSON), exported by the API.
+    "pipemap.interchange": (
+        "pipemap.api",
+        "pipemap.__version__",
+        "pipemap.replay",
+        "pipemap.recorder",
+        "pipemap.localizer",
+        "pipemap.errors",
+    ),
+    # Routes through a map document (``pipemap route``).
+    "pipemap.routes": ("pipemap.localizer", "pipemap.errors"),
+    # A simulated run's sweeps written as image-set folders (``pipemap sim``).
+    "pipemap.sweep_folders": (
+        "pipemap.imagesets",
+        "pipemap.recorder",
+        "pipemap.sim",
         "pipemap.errors",
     ),
     # Batch experiments: below the command line only, above every layer.
@@ -99,6 +123,7 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.allocator",
         "pipemap.wholefile",
         "pipemap.stops",
+        "pipemap.defaults",
         "pipemap.__version__",
     ),
     "pipemap.cli": ("pipemap",),
@@ -106,7 +131,13 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
 }
 
 #: Areas loaded by every layer: standard library only.
-STDLIB_ONLY = ("pipemap.errors", "pipemap", "pipemap.pngcheck", "pipemap.allocator")
+STDLIB_ONLY = (
+    "pipemap.errors",
+    "pipemap",
+    "pipemap.pngcheck",
+    "pipemap.allocator",
+    "pipemap.defaults",
+)
 
 #: The names the layers had before they moved under ``pipemap``: importing one is
 #: always wrong (installed, they do not exist).

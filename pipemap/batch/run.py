@@ -69,13 +69,11 @@ def _cpu_s() -> float:
 
 def _score(path: Path, point: RunPoint) -> dict[str, Any]:
     """``pipemap score RULE_FLAGS path --threshold T``: its calls, its outputs."""
-    from pipemap.replay import SCORE_TOPICS, StreamSource, replay, score_replay
+    from pipemap import api
 
     config = RULES[point.rule].config(point.threshold)
     started = time.perf_counter()
-    source = StreamSource(path, SCORE_TOPICS)
-    result = replay(source, config, keep_sets=False)
-    report = score_replay(result, source, config.threshold, config.fast)
+    report = api.score(path, config)
     known_errors = [
         abs(v.rotation_error_rad) for v in report.visits if v.rotation_error_rad is not None
     ]

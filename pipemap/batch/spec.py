@@ -44,7 +44,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pipemap.batch.rules import RULES, Rule
+from pipemap.defaults import IMAGES_PER_SWEEP, LAMP_STRENGTHS, LIGHTING, RESOLUTION_PX, SEED
 from pipemap.errors import InputError, SimError
+from pipemap.localizer.presets import PAPER_THRESHOLD
 
 if TYPE_CHECKING:
     from pipemap.recorder import RecordSettings
@@ -88,27 +90,27 @@ CONDITIONS = ("perfect", "noise", "active", "entrance", "autonomous")
 #: ``record --explore``: how the autonomous robot chooses its exits.
 EXPLORE_POLICIES = ("map", "right-hand")
 #: ``record --lighting``: the robot's lamp, or every surface lit evenly.
-LIGHTINGS = ("lamp", "even")
+LIGHTINGS = tuple(LAMP_STRENGTHS)
 #: The default of each key (``None``: resolved per run, see :class:`RunPoint`).
 DEFAULTS: dict[str, Any] = {
     "network": "paper",
-    "seed": 0,
+    "seed": SEED,
     "start": None,
     "condition": "autonomous",
-    "resolution": 400,
-    "images": 6,
+    "resolution": RESOLUTION_PX,
+    "images": IMAGES_PER_SWEEP,
     "align_sweeps": True,
     "explore": "map",
     "obstacles": 0,
     "motor_faults": 0,
     "tilt_deg": 0.0,
-    "lighting": "lamp",
+    "lighting": LIGHTING,
     "alike": 0.0,
     "rule": "default",
     "threshold": None,
 }
 #: ``pipemap score``'s threshold when none is given (without ``--robust``).
-SCORE_THRESHOLD = 0.36
+SCORE_THRESHOLD = PAPER_THRESHOLD
 
 
 class SpecError(InputError):
@@ -189,7 +191,7 @@ class RunPoint:
             obstacles=self.obstacles,
             motor_faults=self.motor_faults,
             tilt_rad=math.radians(self.tilt_deg),
-            lamp_strength=1.0 if self.lighting == "lamp" else 0.0,
+            lamp_strength=LAMP_STRENGTHS[self.lighting],
             alike=float(self.alike),
         )
 

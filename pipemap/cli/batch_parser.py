@@ -8,6 +8,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from pipemap.cli import arguments
+from pipemap.defaults import RESOLUTION_PX, SEED
 from pipemap.localizer.presets import PAPER_THRESHOLD
 
 if TYPE_CHECKING:
@@ -60,9 +61,12 @@ def add_experiment(sub: Subparsers) -> None:
         p, "--out", required=True, metavar="DIR", helptext="folder for the results"
     )
     p.add_argument(
-        "--resolution", type=arguments.resolution, default=400, help="image size in px (400)"
+        "--resolution",
+        type=arguments.resolution,
+        default=RESOLUTION_PX,
+        help=f"image size in px ({RESOLUTION_PX})",
     )
-    p.add_argument("--seed", type=arguments.seed, default=0, help="seed of every run (0)")
+    p.add_argument("--seed", type=arguments.seed, default=SEED, help=f"seed of every run ({SEED})")
     p.add_argument(
         "--threshold",
         type=arguments.threshold,

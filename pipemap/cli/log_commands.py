@@ -10,26 +10,27 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TextIO
 
 from pipemap import __version__
 from pipemap.cli.exits import stop_signals, stopped_status
-from pipemap.cli.run_settings import check_condition_flags, explore_policy
+from pipemap.cli.run_settings import check_condition_flags, explore_policy, record_settings
 from pipemap.errors import InputError, ViewerError
 
-__all__ = ["run_info", "run_record"]
+__all__ = ["progress_printer", "run_info", "run_record"]
 
 
 #: A world that takes longer than this to build says how far it has come.
 _QUIET_BUILD_S = 2.0
 
 
-def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
+def progress_printer(err: TextIO, doing: str = "recording") -> Callable[[Any], None] | None:
+    """On a terminal, a line that says how far a run has come (``doing``: what it
+    does), and how far a world that is slow to build has been built."""
     if not err.isatty():
         return None
     started: list[float] = []
@@ -43,7 +44,7 @@ def _progress_printer(err: TextIO) -> Callable[[Any], None] | None:
                 err.flush()
             return
         err.write(
-            f"\rrecording: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
+            f"\r{doing}: {p.sim_time_ns / 1e9:7.1f} s simulated, {p.sweeps} sweeps, "
             f"{p.visits} node visits "
         )
         err.flush()
@@ -93,8 +94,6 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     """Validate, run the episode while writing its log, print a summary."""
     from pipemap import api
     from pipemap.cli.outputs import output_file
-    from pipemap.recorder import RecordSettings
-    from pipemap.sim.episode import Condition
     from pipemap.sim.network import build_network
     from pipemap.sim.world_budget import check_world_fits
 
@@ -118,33 +117,14 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         from pipemap.cli.view_command import check_view_target
 
         view_target = check_view_target(target, args.save, args.force, args.connect)
-    from pipemap.recorder.online import Explore
-
-    settings = RecordSettings(
-        network=args.network,
-        start=args.start,
-        seed=args.seed,
-        condition=Condition(args.condition),
-        resolution_px=args.resolution,
-        images_per_sweep=args.images,
-        align_sweeps=args.align_sweeps,
-        threshold=args.threshold,
-        explore=Explore(explore_policy(args)),
-        lamp_strength=1.0 if args.lighting == "lamp" else 0.0,
-        tilt_rad=math.radians(args.tilt_deg),
-        obstacles=args.obstacles,
-        motor_faults=args.motor_faults,
-        image_format=args.image_format,
-        jpeg_quality=90 if args.jpeg_quality is None else args.jpeg_quality,
-        alike=args.alike,
-    )
+    settings = record_settings(args)
     settings.deposits(network)  # too many for the network: an error before any work
     live = None
     if args.view and not args.save:
         from pipemap.cli.view_command import live_view
 
         live = live_view(settings.metadata(network, __version__), args.threshold, args.connect)
-    progress = _progress_printer(err)
+    progress = progress_printer(err)
     try:
         with stop_signals():
             result = api.record(target, settings, args.force, progress, live)
@@ -187,116 +167,11 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     return 0 if result.ok else 1
 
 
-class _Census:
-    """What ``pipemap info`` counts, one message at a time, as the log is read: the
-    messages that do not decode as their topic's type, the node arrivals, and the
-    camera's messages for the sweeps."""
-
-    def __init__(self) -> None:
-        from pipemap.recorder import TOPICS
-
-        self.classes = dict(TOPICS)
-        self.undecodable: dict[str, int] = {}
-        self.visits = 0
-
-    def camera(self, messages: Iterable[Any]) -> Iterator[Any]:
-        """The camera's messages of ``messages``, the others counted on the way."""
-        from google.protobuf.message import DecodeError
-
-        from pipemap.recorder import Topic
-        from pipemap.recorder.schemas import NodeEvent
-
-        for m in messages:
-            message_class = self.classes.get(m.topic)
-            if message_class is not None:
-                try:
-                    decoded = message_class.FromString(m.data)
-                except DecodeError:
-                    self.undecodable[m.topic] = self.undecodable.get(m.topic, 0) + 1
-                else:
-                    if m.topic == Topic.NODE:
-                        self.visits += decoded.kind == NodeEvent.ARRIVAL
-            if m.topic in (Topic.SWEEP, Topic.IMAGE):
-                yield m  # undecodable too: the sweeps' own count says what it cost
-
-
-def _read(path: Path) -> tuple[Any, _Census, int, list[str]]:
-    """The log read as it goes: what it holds (no message kept), its census, how many
-    complete sweeps it has (those a replay keeps, with every image readable) and
-    the lines on those skipped. A log whose log time goes back is read again, its
-    camera's messages held and ordered."""
-    from pipemap.recorder import iter_log
-    from pipemap.replay import ordered
-    from pipemap.replay.logged import LogTimeWentBack, SweepAssembler, in_order
-
-    with iter_log(path) as stream:
-        census, sweeps, count = _Census(), SweepAssembler(str(path)), 0
-        try:
-            for m in in_order(census.camera(stream)):
-                count += sweeps.feed(m) is not None
-        except LogTimeWentBack:
-            stream.close()
-            with iter_log(path) as again:
-                census, sweeps, count = _Census(), SweepAssembler(str(path)), 0
-                for m in ordered(list(census.camera(again))):
-                    count += sweeps.feed(m) is not None
-                stream = again
-    sweeps.finish()
-    return stream.contents, census, count, sweeps.warnings
-
-
-def info_document(path: Path) -> dict[str, Any]:
-    """What ``pipemap info --json`` prints."""
-    from pipemap.recorder import METADATA_RESULT, METADATA_RUN
-    from pipemap.recorder.metadata import typed_metadata
-
-    contents, census, sweep_count, skipped = _read(path)
-    undecodable, visits = census.undecodable, census.visits
-    integrity, problem = contents.integrity.value, contents.problem
-    if undecodable:
-        lines = ", ".join(f"{topic} {count}" for topic, count in sorted(undecodable.items()))
-        integrity = "corrupt"
-        problem = "; ".join(p for p in (problem, f"messages that do not decode: {lines}") if p)
-    metadata = typed_metadata(contents.metadata.get(METADATA_RUN, {}))
-    result = contents.metadata.get(METADATA_RESULT)
-    metadata["result"] = None if result is None else typed_metadata(result)
-    return {
-        "file": str(path),
-        "writer": contents.library,
-        "duration_s": contents.duration_ns / 1e9,
-        "messages": sum(contents.counts.values()),
-        "integrity": integrity,
-        "problem": problem or None,
-        "damage": [
-            {
-                "text": d.describe(),
-                "where": d.where,
-                "offset": d.offset,
-                "chunk": d.chunk,
-                "chunks": d.chunks,
-                "problem": d.problem,
-                "start_s": None if d.start_ns is None else d.start_ns / 1e9,
-                "end_s": None if d.end_ns is None else d.end_ns / 1e9,
-                "lost": d.lost,
-            }
-            for d in contents.damage
-        ],
-        "truncated": contents.truncated or None,
-        "undecodable": undecodable,
-        "channels": [
-            {"topic": c.topic, "schema": c.schema_name, "count": contents.counts.get(c.topic, 0)}
-            for c in sorted(contents.channels.values(), key=lambda c: c.channel_id)
-        ],
-        "sweeps": sweep_count,
-        "sweeps_skipped": skipped,
-        "visits": visits,
-        "metadata": metadata,
-    }
-
-
 def run_info(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Describe a log; exit 0 if it is whole or cut short, 1 if it is damaged."""
-    doc = info_document(Path(args.log))
+    from pipemap import api
+
+    doc = api.log_info(Path(args.log))
     if args.json:
         out.write(json.dumps(doc, indent=2) + "\n")
     else:

@@ -102,8 +102,9 @@ def progress_printer(err: TextIO) -> Any:
 
 def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Replay a log and write its map document."""
+    from pipemap import api
     from pipemap.localizer import dumps_document
-    from pipemap.replay import REPLAY_TOPICS, StreamSource, replay
+    from pipemap.replay import REPLAY_TOPICS, StreamSource
 
     target = output_file(args.output, "-o", args.force)
     graphml = output_file(args.graphml, "--graphml", args.force)
@@ -111,7 +112,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     config = localizer_config(args)
     # Read as the replay goes: it holds the map, not the log.
     source = StreamSource(Path(args.log), REPLAY_TOPICS)
-    result = replay(source, config, progress_printer(err), keep_sets=False, keep_prepared=False)
+    result = api.replay(source, config, progress_printer(err), keep_prepared=False)
     report_damage(args.log, source.contents, err)
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
@@ -125,8 +126,6 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
             f"junctions, map written to {target}\n"
         )
     if results_log is not None:
-        from pipemap import api
-
         api.save_results_log(result, results_log, config.threshold)
     if graphml is not None:
         import networkx as nx  # 0.09 s to import: only for GraphML
@@ -193,12 +192,11 @@ def _save_results(folder: Path, report: Any) -> None:
 
 def _score_log(log: str, source: Any, config: Any, err: TextIO) -> Any:
     """The score report of one log, its damage and the replay's notes said on ``err``."""
-    from pipemap.replay import replay, score_replay
+    from pipemap import api
 
-    result = replay(source, config, progress_printer(err), keep_sets=False)
-    report = score_replay(result, source, config.threshold, config.fast)
+    report = api.score(source, config, progress_printer(err))
     report_damage(log, source.contents, err)
-    for warning in result.warnings:
+    for warning in report.replay_notes:
         err.write(f"pipemap: note: {warning}\n")
     for note in report.truth_notes:
         err.write(f"pipemap: warning: {log}: {note}\n")

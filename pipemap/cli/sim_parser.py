@@ -7,6 +7,14 @@ import argparse
 from typing import TYPE_CHECKING
 
 from pipemap.cli import arguments
+from pipemap.defaults import (
+    IMAGE_FORMAT,
+    IMAGES_PER_SWEEP,
+    LAMP_STRENGTHS,
+    LIGHTING,
+    RESOLUTION_PX,
+    SEED,
+)
 from pipemap.localizer.presets import PAPER_THRESHOLD
 
 if TYPE_CHECKING:
@@ -19,7 +27,9 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
     """What to simulate: network, start, seed, condition, camera; shared by sim and record."""
     p.add_argument("--network", required=True, help="paper, grid:RxC, random:N or tree:N")
     p.add_argument("--start", default=None, help="start node label (default: the entry)")
-    p.add_argument("--seed", type=arguments.seed, default=0, help="seed of every random draw (0)")
+    p.add_argument(
+        "--seed", type=arguments.seed, default=SEED, help=f"seed of every random draw ({SEED})"
+    )
     p.add_argument(
         "--condition",
         choices=["perfect", "noise", "active", "entrance", "autonomous"],
@@ -27,14 +37,17 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         help=f"placement at junctions, as in the paper (default {condition})",
     )
     p.add_argument(
-        "--resolution", type=arguments.resolution, default=400, help="image size in px (400)"
+        "--resolution",
+        type=arguments.resolution,
+        default=RESOLUTION_PX,
+        help=f"image size in px ({RESOLUTION_PX})",
     )
     p.add_argument(
         "--lighting",
-        choices=["lamp", "even"],
-        default="lamp",
-        help="lamp (default): a dark pipe lit only by the robot's lamp at the camera; "
-        "even: every surface evenly lit, as in the paper's simulation",
+        choices=list(LAMP_STRENGTHS),
+        default=LIGHTING,
+        help="lamp: a dark pipe lit only by the robot's lamp at the camera; "
+        f"even: every surface evenly lit, as in the paper's simulation (default {LIGHTING})",
     )
     p.add_argument(
         "--tilt-deg",
@@ -72,8 +85,8 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
     p.add_argument(
         "--images",
         type=arguments.images,
-        default=6,
-        help="images per sweep, 360/N degrees apart (6)",
+        default=IMAGES_PER_SWEEP,
+        help=f"images per sweep, 360/N degrees apart ({IMAGES_PER_SWEEP})",
     )
     p.add_argument(
         "--explore",
@@ -98,7 +111,8 @@ def add_sim(sub: Subparsers) -> None:
         "sim",
         help="run a simulated exploration and save its sweeps",
         description="Explore a pipe network and save every junction sweep as DIR/0001, "
-        "DIR/0002, ... in the paper's folder layout. The placed conditions (perfect, the "
+        "DIR/0002, ... in the paper's folder layout: the run record makes on the same flags, "
+        "with the localizer online, but no log. The placed conditions (perfect, the "
         "default; noise, active, entrance) set the robot down at each junction along the "
         "paper's right-most-branch tour; autonomous drives it, exploring by --explore.",
     )
@@ -134,9 +148,10 @@ def add_record(sub: Subparsers) -> None:
     p.add_argument(
         "--image-format",
         choices=("png", "jpeg"),
-        default="png",
-        help="how the log stores the camera's images: png, lossless (default), or jpeg, as "
-        "a real camera often gives them (the replay decodes what the log holds)",
+        default=IMAGE_FORMAT,
+        help="how the log stores the camera's images: png, lossless, or jpeg, as a real "
+        "camera often gives them (the replay decodes what the log holds; default "
+        f"{IMAGE_FORMAT})",
     )
     p.add_argument(
         "--jpeg-quality",

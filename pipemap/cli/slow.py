@@ -9,9 +9,9 @@ from __future__ import annotations
 import threading
 import time
 from types import TracebackType
-from typing import Any, TextIO
+from typing import TextIO
 
-__all__ = ["SLOW_S", "SlowNotice", "world_notice"]
+__all__ = ["SLOW_S", "SlowNotice"]
 
 #: How long a step may take before it is announced.
 SLOW_S = 3.0
@@ -71,13 +71,3 @@ class SlowNotice:
         tb: TracebackType | None,
     ) -> None:
         self.stop()
-
-
-def world_notice(err: TextIO, name: str, network: Any) -> SlowNotice:
-    """The notice of building ``network``'s world (``name`` as given on the command line)."""
-    return SlowNotice(
-        err,
-        f"building the world of {name} ({len(network.nodes)} junctions, "
-        f"{len(network.pipes)} pipes): a large network takes a minute or more",
-        "world built",
-    )

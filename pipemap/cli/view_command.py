@@ -202,14 +202,10 @@ class _Child:
         try:
             with os.fdopen(write_end, "wb") as pipe:
                 try:
-                    from pipemap.replay import replay
+                    from pipemap import api
 
-                    done = replay(
-                        open_log(),
-                        config(),
-                        progress_printer(err),
-                        keep_sets=False,
-                        keep_prepared=False,
+                    done = api.replay(
+                        open_log(), config(), progress_printer(err), keep_prepared=False
                     )
                     # The view needs the decisions, not the visits' image sets (not
                     # kept) or the localizer's database of junctions.
@@ -298,11 +294,9 @@ def _view(
         return StreamSource(log, REPLAY_TOPICS)
 
     if not _can_fork():
-        from pipemap.replay import replay
+        from pipemap import api
 
-        done = replay(
-            open_log(), config(), progress_printer(err), keep_sets=False, keep_prepared=False
-        )
+        done = api.replay(open_log(), config(), progress_printer(err), keep_prepared=False)
         _show(viewed, done, target, max_rate_hz)
     else:
         child = _Child(open_log, config, err)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import io
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -19,7 +21,7 @@ def test_the_build_line_shows_only_once_the_build_is_slow(monkeypatch: pytest.Mo
     clock = iter([100.0, 100.0, 100.5, 103.0])
     monkeypatch.setattr(log_commands.time, "monotonic", lambda: next(clock))
     err = _Terminal()
-    show = log_commands._progress_printer(err)
+    show = log_commands.progress_printer(err)
     assert show is not None
     show(Progress(0, 0, 0, world_pieces=(0, 50)))  # starts the clock at 100 s
     show(Progress(0, 0, 0, world_pieces=(1, 50)))  # 0.5 s: quiet
@@ -31,4 +33,29 @@ def test_the_build_line_shows_only_once_the_build_is_slow(monkeypatch: pytest.Mo
 
 
 def test_no_progress_line_off_a_terminal() -> None:
-    assert log_commands._progress_printer(io.StringIO()) is None
+    assert log_commands.progress_printer(io.StringIO()) is None
+
+
+@pytest.mark.parametrize(
+    "command,output,doing",
+    [("record", "-o", "recording"), ("sim", "--save-sweeps", "simulating")],
+)
+def test_the_build_line_through_the_command(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, command: str, output: str, doing: str
+) -> None:
+    """The command on a terminal: a world slower to build than the quiet time (here
+    none, so that a tree of two junctions is "slow") says how far it has come, then
+    the run says how far it has come."""
+    from pipemap.cli import main
+
+    monkeypatch.setattr(log_commands, "_QUIET_BUILD_S", 0.0)
+    err = _Terminal()
+    monkeypatch.setattr(sys, "stderr", err)
+    argv = [command, "--network", "tree:2", "--condition", "perfect", "--resolution", "16"]
+    assert main([*argv, output, str(tmp_path / "out")]) == 0, err.getvalue()
+    lines = err.getvalue().split("\r")
+    built = [line for line in lines if line.startswith("building the world: ")]
+    assert built, err.getvalue()
+    done, pieces = built[-1].split(": ")[1].split(" ")[0].split("/")
+    assert done == pieces and int(pieces) > 0
+    assert any(line.startswith(f"{doing}: ") for line in lines)

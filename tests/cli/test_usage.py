@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import io
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -105,6 +106,35 @@ def test_a_downsampling_beyond_the_logs_images_is_refused(tmp_path: Path) -> Non
     assert "at most" in done.stderr and done.stdout == ""
 
 
+def test_a_downsampling_beyond_the_logs_images_is_refused_before_any_sweep(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The log's settings give its images' size: the replay stops at its first message,
+    # before it has read, let alone prepared, a sweep.
+    from pipemap import api
+    from pipemap.errors import InputError
+    from pipemap.localizer import FastConfig, LocalizerConfig
+    from pipemap.recorder import Topic
+    from pipemap.replay import SCORE_TOPICS, StreamSource
+
+    source = StreamSource(LOG, SCORE_TOPICS)
+    read: list[object] = []
+    stream = source.robot_stream
+
+    def counted() -> Iterator[object]:
+        for m in stream():
+            read.append(m)
+            yield m
+
+    monkeypatch.setattr(source, "robot_stream", counted)
+    config = LocalizerConfig(fast=FastConfig(fine_downsample=1000))
+    with pytest.raises(InputError, match=r"downsampling by 1000 .* at most "):
+        api.score(source, config)
+    # Only the few the replay's reordering window holds: not one sweep's images.
+    images = [m for m in read if getattr(m, "topic", None) == Topic.IMAGE]
+    assert 1 <= len(read) <= 8 and len(images) < 6
+
+
 class Terminal(io.StringIO):
     """Standard error as a terminal: where progress lines are shown."""
 
@@ -129,24 +159,6 @@ def test_a_slow_step_says_so_and_how_long_it_took(monkeypatch: pytest.MonkeyPatc
     with slow.SlowNotice(piped, "building", "built"):
         time.sleep(0.3)
     assert piped.getvalue() == ""
-
-
-def test_sim_announces_a_slow_world_build(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every world counts as slow here: the notice comes before the run and its end."""
-    import contextlib
-
-    from pipemap.cli import main
-
-    monkeypatch.setattr(slow, "SLOW_S", 0.0)
-    out = tmp_path / "sweeps"
-    argv = ["sim", "--network", "paper", "--resolution", "32", "--images", "2"]
-    err = Terminal()
-    with contextlib.redirect_stderr(err):
-        code = main([*argv, "--save-sweeps", str(out)])
-    lines = err.getvalue().splitlines()
-    assert code == 0, lines
-    assert lines[0].startswith("pipemap: building the world of paper (7 junctions, 6 pipes)")
-    assert lines[1].startswith("pipemap: world built in ")
 
 
 ACTIVE = ROOT / "recordings" / "paper_active.mcap"

@@ -17,7 +17,6 @@ import pytest
 
 from pipemap import recorder
 from pipemap.cli.app import main
-from pipemap.cli.log_commands import info_document
 from pipemap.cli.replay_commands import progress_printer
 from pipemap.errors import LogFormatError
 from pipemap.localizer import LocalizerConfig, dumps_document
@@ -35,6 +34,7 @@ from pipemap.replay import (
     score_replay,
 )
 from pipemap.replay import replayer as replayer_module
+from pipemap.replay.info import log_info as info_document
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
 ACTIVE = RECORDINGS / "paper_active.mcap"  # has probe sweeps

@@ -76,7 +76,7 @@ def test_an_autonomous_run_goes_out_and_back_with_its_ports_and_counts(
     """Every sensor stream, /tf with the truth, the exit scans: rosbags' reader counts
     on each topic what ``pipemap info`` counts on the log's, and the bag imports back
     to a log that replays to the same map bytes, ports included."""
-    from pipemap.cli.log_commands import info_document
+    from pipemap.replay.info import log_info as info_document
 
     log = RECORDINGS / "paper_autonomous.mcap"
     bag = _bag_counts(autonomous[0])
