@@ -99,6 +99,11 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from pipemap.sim.world_budget import check_world_fits
 
     check_condition_flags(args)
+    if args.no_probe_moves and args.condition != "autonomous":
+        raise InputError(
+            f"--no-probe-moves: only the autonomous robot makes its own probe moves "
+            f"(condition {args.condition})"
+        )
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
@@ -137,6 +142,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
         image_format=args.image_format,
         jpeg_quality=90 if args.jpeg_quality is None else args.jpeg_quality,
         alike=args.alike,
+        probe_moves=not args.no_probe_moves,
     )
     settings.deposits(network)  # too many for the network: an error before any work
     live = None
