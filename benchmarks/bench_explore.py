@@ -3,7 +3,8 @@
     python benchmarks/bench_explore.py [--suite must|loops50|paper|all] [--resolution PX]
                                        [--jobs N] [--explore map|right-hand]
                                        [--alike F] [--first K] [--count N]
-                                       [--no-odometry-check]
+                                       [--no-odometry-check] [--no-probe-moves]
+                                       [--tilt-deg DEG] [--obstacles N]
 
 Each run is ``pipemap record`` (autonomous, the online localizer choosing exits from
 its map) into a temporary log, then ``pipemap score`` of that log. One line per run:
@@ -28,6 +29,10 @@ worlds (``pipemap record --alike F``: docs/lookalike.md); the line then ends wit
 decisions that went wrong (false merges, false new junctions). ``--first K --count N``
 runs N of the suite's runs from the K-th. ``--no-odometry-check`` records and replays
 with the localizer's odometry check off (the localizer before it existed).
+``--no-probe-moves`` records with the robot making none of the probe moves active
+vision asks for (``pipemap record --no-probe-moves``); ``--tilt-deg`` and
+``--obstacles`` are ``pipemap record``'s. Each line ends with the probe sweeps the
+robot made of those the localizer asked for.
 """
 
 from __future__ import annotations
@@ -85,6 +90,8 @@ class Outcome:
     wall_s: float
     false_merges: int = 0
     false_new: int = 0
+    probes_made: int = 0
+    probes_asked: int = 0
 
     @property
     def covered(self) -> bool:
@@ -102,11 +109,19 @@ class Outcome:
             f"  odo same {self.odometry_same_m:.2f} "
             f"other {self.odometry_other_m:.2f}  {self.wall_s:5.1f} s"
             f"  false merge {self.false_merges} false new {self.false_new}"
+            f"  probes {self.probes_made}/{self.probes_asked}"
         )
 
 
 def run_case(
-    case: Case, resolution_px: int, explore: str, alike: float = 0.0, odometry_check: bool = True
+    case: Case,
+    resolution_px: int,
+    explore: str,
+    alike: float = 0.0,
+    odometry_check: bool = True,
+    probe_moves: bool = True,
+    tilt_deg: float = 0.0,
+    obstacles: int = 0,
 ) -> Outcome:
     """Record ``case``, replay and score it."""
     from pipemap.localizer import LocalizerConfig
@@ -124,6 +139,9 @@ def run_case(
         explore=Explore(explore),
         alike=alike,
         odometry_check=odometry_check,
+        probe_moves=probe_moves,
+        tilt_rad=math.radians(tilt_deg),
+        obstacles=obstacles,
     )
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -167,6 +185,8 @@ def run_case(
         wall,
         report.counts()["false_merge"],
         report.counts()["false_new"],
+        sum(p.similarity is not None for v in result.visits for p in v.decision.probes),
+        sum(len(v.decision.probes) for v in result.visits),
     )
 
 
@@ -233,13 +253,20 @@ def main() -> int:
     parser.add_argument(
         "--no-odometry-check", action="store_true", help="the localizer's odometry check off"
     )
+    parser.add_argument(
+        "--no-probe-moves", action="store_true", help="the robot makes no probe moves"
+    )
+    parser.add_argument("--tilt-deg", type=float, default=0.0, help="record --tilt-deg (0)")
+    parser.add_argument("--obstacles", type=int, default=0, help="record --obstacles (0)")
     args = parser.parse_args()
     todo = cases(args.suite)[args.first :]
     todo = todo if args.count is None else todo[: args.count]
     print(
         f"# bench_explore: {len(todo)} runs, {args.resolution} px, explore {args.explore}, "
         f"alike {args.alike:g}, odometry check "
-        f"{'off' if args.no_odometry_check else 'on'}, {args.jobs} job(s)",
+        f"{'off' if args.no_odometry_check else 'on'}, probe moves "
+        f"{'off' if args.no_probe_moves else 'on'}, tilt {args.tilt_deg:g} deg, "
+        f"{args.obstacles} obstacle(s), {args.jobs} job(s)",
         flush=True,
     )
     outcomes: list[Outcome] = []
@@ -252,6 +279,9 @@ def main() -> int:
                 args.explore,
                 args.alike,
                 not args.no_odometry_check,
+                not args.no_probe_moves,
+                args.tilt_deg,
+                args.obstacles,
             )
             for c in todo
         ]
@@ -292,7 +322,9 @@ def _summary(outcomes: list[Outcome]) -> None:
     )
     print(
         f"# decisions wrong: {sum(o.false_merges for o in outcomes)} false merges, "
-        f"{sum(o.false_new for o in outcomes)} false new junctions"
+        f"{sum(o.false_new for o in outcomes)} false new junctions; probe sweeps made "
+        f"{sum(o.probes_made for o in outcomes)} of {sum(o.probes_asked for o in outcomes)} "
+        "asked for"
     )
     print(f"# wall time: {sum(o.wall_s for o in outcomes):.0f} s in all")
 

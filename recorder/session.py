@@ -8,9 +8,12 @@ visit under ``/online``. The localizer sees exactly what the log holds: the robo
 images after a lossless PNG round trip, and its own camera angles.
 
 Active vision: the localizer may ask for probe sweeps after small moves. In the
-``active`` condition the robot makes them (they are logged as probe sweeps of the
-visit). In every other condition it cannot, and the decision records the probes as
-missing; a replay of the log then meets the same answer.
+``active`` condition the experimenter puts the robot down after each move; the
+autonomous robot makes the moves itself, checked by its rangers
+(:mod:`recorder.probe_moves`), unless its settings turn them off
+(``probe_moves``). Either way they are logged as probe sweeps of the visit. In the
+other placed conditions, and with the moves off, it makes none, and the decision
+records the probes as missing; a replay of the log then meets the same answer.
 
 In the placement conditions (``perfect``, ``noise``, ``active``, ``entrance``) the
 robot is carried along the tour and put down at each node by hand, as in the paper;
@@ -42,6 +45,7 @@ from pipemap.recorder.background import BackgroundWriter
 from pipemap.recorder.convert import LogRecord, ReadyMessage, SweepDone
 from pipemap.recorder.inline import InlineWriter, NoLog, RecordWriter
 from pipemap.recorder.online import NoProbes, OnlineLocalizer, gray_set, make_policy
+from pipemap.recorder.probe_moves import RobotProbes
 from pipemap.recorder.settings import RecordSettings
 from pipemap.recorder.topics import Topic
 from pipemap.sim.controller import RunStatus, autonomous_run
@@ -420,6 +424,9 @@ def record_run(
                 policy = make_policy(
                     settings.explore, sink.online, explorer.start_radius_m, explorer.drift_per_m
                 )
+                robot_probes = RobotProbes(camera.fov_rad) if settings.probe_moves else None
+                if robot_probes is not None:
+                    sink.online.probes = robot_probes  # active vision: the robot moves
                 result = autonomous_run(
                     world,
                     camera,
@@ -429,6 +436,7 @@ def record_run(
                     sink=sink,
                     policy=policy,
                     motor_faults=settings.cut_outs(network),
+                    on_explorer=None if robot_probes is None else robot_probes.attach,
                 )
                 status = result.status.value
                 distance, duration = result.distance_m, result.duration_ns

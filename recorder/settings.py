@@ -76,6 +76,10 @@ class RecordSettings:
     #: off only to measure what it buys (``benchmarks/bench_explore.py``). Off, the
     #: run metadata says so; on, the log is as without the setting.
     odometry_check: bool = True
+    #: The autonomous robot makes the probe moves active vision asks for. Off (to
+    #: measure what they change), the run metadata says so; on, a run that asks for
+    #: no probe logs as without the setting.
+    probe_moves: bool = True
 
     def __post_init__(self) -> None:
         try:
@@ -150,6 +154,8 @@ class RecordSettings:
             simulator["placement"].pop("camera")
             simulator["placement"]["condition"] = self.condition.value
         extra = {} if self.odometry_check else {"odometry_check": "false"}
+        if not self.probe_moves and self.condition is Condition.AUTONOMOUS:
+            extra["probe_moves"] = "false"
         return {
             "format_version": FORMAT_VERSION,
             "pipemap_version": version,

@@ -92,10 +92,14 @@ _LOG = logging.getLogger(__name__)
 
 
 def _makes_probes(metadata: dict[str, str] | None) -> bool:
-    """Whether the run's robot makes the probe moves active vision asks for: only in
-    the ``active`` placement condition (``recorder.session``); a log that does not
-    name its condition is taken to, so a missing probe is reported as missing."""
+    """Whether the run's robot makes the probe moves active vision asks for: in the
+    ``active`` placement condition, and in the ``autonomous`` one unless its metadata
+    turns them off (``recorder.session``); a log that does not name its condition is
+    taken to, so a missing probe is reported as missing."""
     condition = None if metadata is None else metadata.get("condition")
+    if condition == "autonomous":
+        assert metadata is not None
+        return metadata.get("probe_moves", "true") != "false"
     return condition is None or condition == "active"
 
 

@@ -109,6 +109,15 @@ class Explorer:
         # Ground truth only labels the sweeps for scoring; no decision reads it.
         self._true_node_of = true_node_of
         self.motion = Motion(robot, self.config, self.recovery, sink, self.time_limit_ns)
+        #: At the junction of the latest sweep: the robot's (roll, pitch) and its IMU's
+        #: reading of them, and its heading estimate when it swept (for probe moves).
+        self.junction_tilt: tuple[tuple[float, float], tuple[float, float]] = ((0.0, 0.0),) * 2
+        self.sweep_heading = self.motion.yaw_est
+
+    @property
+    def true_node_of(self) -> Callable[[PlanarPose], str] | None:
+        """Labels a sweep with the node it was truly taken at (for scoring only)."""
+        return self._true_node_of
 
     def _tilt(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """The robot's (roll, pitch) at this junction, and its IMU's reading of them."""
@@ -149,7 +158,9 @@ class Explorer:
                 choice = choose_again(m, self.policy, returning)
                 returning = None
             else:
-                sweep(m, self.camera, self._true_node_of, *self._tilt())
+                self.junction_tilt = self._tilt()
+                self.sweep_heading = m.yaw_est
+                sweep(m, self.camera, self._true_node_of, *self.junction_tilt)
                 exits, steer = scan(m)
                 relative = tuple(math.remainder(e - arrival, 2.0 * math.pi) for e in exits)
                 x, y = (float(v) for v in m.xy_est)
@@ -225,6 +236,7 @@ def autonomous_run(
     policy: ExitPolicy | None = None,
     motor_faults: tuple[MotorFault, ...] = (),
     recovery: RecoveryConfig | None = None,
+    on_explorer: Callable[[Explorer], None] | None = None,
 ) -> ExplorationResult:
     """Place the robot at the start node (default the entry) and explore, choosing
     exits by ``policy`` (default the right-most-branch rule).
@@ -260,4 +272,6 @@ def autonomous_run(
         recovery=recovery,
         tilt_rng=tilts,
     )
+    if on_explorer is not None:
+        on_explorer(explorer)
     return explorer.run()

@@ -29,7 +29,7 @@ from pipemap.sim.scan_geometry import (
 from pipemap.sim.stream import NodeArrival, SweepEnd, SweepImage, SweepStart
 from pipemap.sim.world import CameraSpec
 
-__all__ = ["recentre", "scan", "scan_samples", "settle_on_wall_ahead", "sweep"]
+__all__ = ["recentre", "scan", "scan_samples", "settle_on_wall_ahead", "sweep", "take_sweep"]
 
 
 def sweep(
@@ -43,17 +43,36 @@ def sweep(
     ``2*pi/N`` nearest the heading estimate; the robot stands still meanwhile. The
     sweep is labelled by ``true_node_of`` (ground truth, for scoring only). A robot
     off level stands at ``tilt_rad`` (roll, pitch) and its IMU reads ``imu_tilt_rad``."""
+    number = len(m.result.sweeps) + 1  # the visit's number
+    if m.sink is not None:
+        m.sink(NodeArrival(m.robot.t_ns, number))
+    take_sweep(m, camera, true_node_of, number, None, tilt_rad, imu_tilt_rad)
+
+
+def take_sweep(
+    m: Motion,
+    camera: CameraSpec,
+    true_node_of: Callable[[PlanarPose], str] | None,
+    visit_id: int,
+    probe: tuple[str, float, float, float] | None,
+    tilt_rad: tuple[float, float] = (0.0, 0.0),
+    imu_tilt_rad: tuple[float, float] = (0.0, 0.0),
+) -> Sweep:
+    """One sweep of visit ``visit_id`` where the robot stands (see :func:`sweep`):
+    the visit's own (``probe`` ``None``: kept in the run's result) or an active-vision
+    probe sweep, ``probe`` its ``(kind, yaw, forward, left)`` move. Sweeps are numbered
+    in the order taken: without probes, as the visits."""
     c = m.config
     m.state = "sweeping"
     pose = m.robot.pose
     n = c.images_per_sweep
-    number = len(m.result.sweeps) + 1  # one sweep per visit: the same number
+    number = len(m.result.sweeps) + m.probe_sweeps + 1
     angle = sweep_start_angle(m.yaw_est, n, c.align_sweeps)
     first = pose.yaw_rad + angle  # where the camera truly points: the robot's true yaw
     sink = m.sink
     if sink is not None:
-        sink(NodeArrival(m.robot.t_ns, number))
-        sink(SweepStart(m.robot.t_ns, number, number, n, angle, camera.fov_rad, None, imu_tilt_rad))
+        fov = camera.fov_rad
+        sink(SweepStart(m.robot.t_ns, number, visit_id, n, angle, fov, probe, imu_tilt_rad))
     roll, pitch = tilt_rad
     images = []
     for j in range(n):
@@ -65,17 +84,23 @@ def sweep(
             world = m.robot.world
             images.append(world.render_tilted(eye, pose.yaw_rad, angle - step, roll, pitch, camera))
         if sink is not None:
-            sink(SweepImage(m.robot.t_ns, number, number, j, angle - step, images[-1]))
+            sink(SweepImage(m.robot.t_ns, number, visit_id, j, angle - step, images[-1]))
         m.drive(0.0, 0.0, c.sweep_step_ns)  # the camera motor turns; the robot waits
     truth = true_node_of(pose) if true_node_of is not None else ""
     start = Pose(pose.x_m, pose.y_m, c.camera_height_m, roll, pitch, first)
-    taken = Sweep(np.stack(images), camera_angle_rad=angle, imu_tilt_rad=imu_tilt_rad)
+    moved = None if probe is None else probe[1:]
+    taken = Sweep(np.stack(images), moved, camera_angle_rad=angle, imu_tilt_rad=imu_tilt_rad)
     known = SweepTruth(str(truth), start)
-    m.result.sweeps.append(taken)
-    m.result.sweep_truths.append(known)
-    m.event(f"sweep {number}")
+    if probe is None:
+        m.result.sweeps.append(taken)
+        m.result.sweep_truths.append(known)
+        m.event(f"sweep {number}")
+    else:
+        m.probe_sweeps += 1
+        m.event(f"probe sweep {number} ({probe[0]}) of visit {visit_id}")
     if sink is not None:
-        sink(SweepEnd(m.robot.t_ns, number, number, taken, known))
+        sink(SweepEnd(m.robot.t_ns, number, visit_id, taken, known))
+    return taken
 
 
 def scan_samples(m: Motion) -> list[tuple[float, float]]:

@@ -55,6 +55,8 @@ class Motion:
         # Commanded motion with the encoders standing still, so far (a stall).
         self.stall_ns = 0
         self.halt: RunStatus | None = None  # a watchdog fired during a recovery
+        #: Active-vision probe sweeps taken so far (they number after the visits').
+        self.probe_sweeps = 0
 
     def put_down(self) -> None:
         """The robot has been carried by hand and put down: its gyro measured the

@@ -98,6 +98,11 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     from pipemap.sim.world_budget import check_world_fits
 
     check_condition_flags(args)
+    if args.no_probe_moves and args.condition != "autonomous":
+        raise InputError(
+            f"--no-probe-moves: only the autonomous robot makes its own probe moves "
+            f"(condition {args.condition})"
+        )
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)

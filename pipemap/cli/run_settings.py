@@ -74,6 +74,8 @@ def record_settings(args: argparse.Namespace) -> RecordSettings:
         "obstacles": args.obstacles,
         "motor_faults": args.motor_faults,
         "alike": args.alike,
+        # ``record --no-probe-moves``; ``sim`` always makes the moves asked for.
+        "probe_moves": not getattr(args, "no_probe_moves", False),
     }
     for flag, key in (("threshold", "threshold"), ("image_format", "image_format")):
         if getattr(args, flag, None) is not None:

@@ -146,6 +146,12 @@ def add_record(sub: Subparsers) -> None:
     arguments.add_force(p, "overwrite an existing log")
     arguments.add_verbose(p)
     p.add_argument(
+        "--no-probe-moves",
+        action="store_true",
+        help="autonomous condition: the robot makes none of the probe moves active vision "
+        "asks for (by default it makes them, checked by its rangers, and logs their sweeps)",
+    )
+    p.add_argument(
         "--image-format",
         choices=("png", "jpeg"),
         default=IMAGE_FORMAT,

@@ -95,7 +95,7 @@ def test_one_corrupt_chunk_keeps_every_sweep_of_the_intact_chunks(
     tmp_path: Path, layout: tuple[list[tuple[int, int]], list[list]], cut_summary: bool
 ) -> None:
     positions, chunks = layout
-    assert len(chunks) == 14
+    assert len(chunks) == 19
     damaged = tmp_path / "damaged.mcap"
     damage_chunk(STORED, damaged, *positions[1], cut_summary)
     source = FileSource(damaged)
@@ -130,7 +130,7 @@ def test_info_names_the_damaged_chunk_and_what_it_held(
     doc = json.loads(done.stdout)
     assert doc["integrity"] == "corrupt"
     [damage] = doc["damage"]
-    assert (damage["chunk"], damage["chunks"], damage["offset"]) == (2, 14, positions[1][0])
+    assert (damage["chunk"], damage["chunks"], damage["offset"]) == (2, 19, positions[1][0])
     # One bit flipped in the compressed records: zstd or the chunk's CRC catches it,
     # depending on where the bit falls.
     assert damage["problem"] == "CRC mismatch" or damage["problem"].startswith(
@@ -139,6 +139,6 @@ def test_info_names_the_damaged_chunk_and_what_it_held(
     assert damage["lost"] == dict(Counter(topic for topic, _, _ in chunks[1]))
     times = [t for _, t, _ in chunks[1]]
     assert damage["start_s"] == min(times) / 1e9 and damage["end_s"] == max(times) / 1e9
-    assert "chunk 2 of 14" in doc["problem"]
+    assert "chunk 2 of 19" in doc["problem"]
     # The sweeps a replay keeps: info and replay agree.
-    assert doc["sweeps"] == 12
+    assert doc["sweeps"] == 17  # of 18, probe sweeps included

@@ -378,16 +378,23 @@ def test_the_latency_clock_times_the_decision_not_unpacking_the_images(
 
 
 @pytest.mark.parametrize(
-    ("condition", "makes_probes"), [("autonomous", False), ("active", True), (None, True)]
+    ("condition", "probe_moves", "makes_probes"),
+    [
+        ("autonomous", "false", False),
+        ("autonomous", None, True),
+        ("active", None, True),
+        (None, None, True),
+    ],
 )
 def test_a_missing_probe_is_a_gap_only_where_the_robot_makes_probe_moves(
-    condition: str | None, makes_probes: bool
+    condition: str | None, probe_moves: str | None, makes_probes: bool
 ) -> None:
     """At a threshold of 0.6 the stored autonomous run's matches are weak and active
-    vision asks for probes. Its robot makes none (only the ``active`` condition does),
-    so the replay says they were not made, not that the log lacks them, and no
-    decision is marked as missing any. The same messages said to be an ``active``
-    run (or not saying) lack them: then they are missing."""
+    vision asks for probes its log does not hold (the robot made those asked for at
+    0.36). Said to be run with its probe moves off, the replay says they were not
+    made, not that the log lacks them, and no decision is marked as missing any. The
+    same messages of an autonomous robot that makes its moves, an ``active`` run or
+    one that does not say lack them: then they are missing."""
     from pipemap.replay.source import MemorySource
 
     contents = read_log(RECORDINGS / "paper_autonomous.mcap")
@@ -395,14 +402,16 @@ def test_a_missing_probe_is_a_gap_only_where_the_robot_makes_probe_moves(
     run.pop("condition")
     if condition is not None:
         run["condition"] = condition
+    if probe_moves is not None:
+        run["probe_moves"] = probe_moves
     source = MemorySource(list(contents.messages), run, "paper_autonomous.mcap")
     result = replay(source, LocalizerConfig(threshold=0.6))
-    asked = sum(len(v.decision.probes) for v in result.visits)
-    assert asked > 0
+    unanswered = sum(p.similarity is None for v in result.visits for p in v.decision.probes)
+    assert unanswered > 0
     missing = sum(v.probes_not_in_log for v in result.visits)
-    gap = f"{asked} probe sweep(s) asked for are not in the log"
-    not_made = f"active vision asked for {asked} probe sweep(s); in condition 'autonomous'"
-    assert missing == (asked if makes_probes else 0)
+    gap = f"{unanswered} probe sweep(s) asked for are not in the log"
+    not_made = f"active vision asked for {unanswered} probe sweep(s); in condition 'autonomous'"
+    assert missing == (unanswered if makes_probes else 0)
     notes = [w for w in result.warnings if "probe" in w]
     assert len(notes) == 1
     assert notes[0].startswith(gap if makes_probes else not_made)

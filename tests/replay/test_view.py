@@ -425,24 +425,29 @@ def test_the_command_never_reads_the_log_whole(
     assert out.exists()
 
 
-@pytest.mark.parametrize(("condition", "missing"), [("autonomous", "INFO"), ("active", "WARN")])
+@pytest.mark.parametrize(
+    ("probe_moves", "makes_probes"), [("false", False), ("true", True)], ids=["off", "on"]
+)
 def test_a_decision_is_a_warning_only_where_probes_the_robot_makes_are_missing(
-    tmp_path: Path, condition: str, missing: str
+    tmp_path: Path, probe_moves: str, makes_probes: bool
 ) -> None:
-    """The stored autonomous run asks for probes it cannot make (as online): those
-    decisions are plain ones in the view. The same messages said to be an ``active``
-    run lack probes its robot would have made: those decisions are warnings."""
+    """At a threshold of 0.6 the stored autonomous run asks for probes its log does not
+    hold. Said to be recorded with its probe moves off, those decisions are plain ones
+    in the view (as online, the robot made none). Said to make its moves, the probes
+    it would have made are missing: those decisions are warnings."""
+    from pipemap.localizer import LocalizerConfig
     from pipemap.recorder import METADATA_RUN
     from pipemap.replay.source import MemorySource
 
     contents = read_log(RECORDINGS / "paper_autonomous.mcap")
-    run = {**contents.metadata[METADATA_RUN], "condition": condition}
+    run = {**contents.metadata[METADATA_RUN], "probe_moves": probe_moves}
     source = MemorySource(list(contents.messages), run, "paper_autonomous.mcap")
-    result = replay(source)
-    assert any(v.decision.probes for v in result.visits)
+    result = replay(source, LocalizerConfig(threshold=0.6))
+    short = [any(p.similarity is None for p in v.decision.probes) for v in result.visits]
+    assert any(short)
     save_view(source, result, tmp_path / "view.rrd")
     levels = column(read_chunks(tmp_path / "view.rrd"), "/log/decisions", "TextLog:level")
-    expected = [missing if v.decision.probes else "INFO" for v in result.visits]
+    expected = ["WARN" if s and makes_probes else "INFO" for s in short]
     assert [level[0] for level in levels] == expected
 
 

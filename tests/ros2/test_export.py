@@ -146,7 +146,7 @@ def test_tum_trajectories_are_read_by_evo_ape(
     log = RECORDINGS / "paper_autonomous.mcap"
     status, out, err = _run(["export", str(log), "--tum", str(tmp_path / "tum")], capsys)
     assert status == 0, err
-    assert "8639 dead-reckoned poses, 8640 true poses, 13 junctions" in out
+    assert "10119 dead-reckoned poses, 10120 true poses, 13 junctions" in out
     env = {**os.environ, "HOME": str(tmp_path), "MPLBACKEND": "Agg"}
     done = subprocess.run(
         [evo_ape, "tum", "truth.tum", "estimated.tum", "--align", "--save_results", "ape.zip"],
@@ -178,4 +178,4 @@ def test_a_log_without_truth_has_no_true_trajectory(
     )
     assert status == 0
     assert "no ground truth" in err and not (tmp_path / "tum" / "truth.tum").exists()
-    assert "8639 dead-reckoned poses, 0 true poses" in out
+    assert "10119 dead-reckoned poses, 0 true poses" in out
