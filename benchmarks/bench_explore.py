@@ -3,7 +3,7 @@
     python benchmarks/bench_explore.py [--suite must|loops50|paper|all] [--resolution PX]
                                        [--jobs N] [--explore map|right-hand]
                                        [--alike F] [--first K] [--count N]
-                                       [--no-odometry-check]
+                                       [--no-odometry-check] [--hypotheses K]
 
 Each run is ``pipemap record`` (autonomous, the online localizer choosing exits from
 its map) into a temporary log, then ``pipemap score`` of that log. One line per run:
@@ -27,7 +27,9 @@ Suites: ``must`` is the issue's list (``paper`` from all 7 starts, ``grid:3x3``,
 worlds (``pipemap record --alike F``: docs/lookalike.md); the line then ends with the
 decisions that went wrong (false merges, false new junctions). ``--first K --count N``
 runs N of the suite's runs from the K-th. ``--no-odometry-check`` records and replays
-with the localizer's odometry check off (the localizer before it existed).
+with the localizer's odometry check off (the localizer before it existed);
+``--hypotheses 1`` with one map (no competing hypotheses: docs/lookalike.md), and the
+line's ``deferred`` counts the decisions the localizer kept open among look-alikes.
 """
 
 from __future__ import annotations
@@ -85,6 +87,8 @@ class Outcome:
     wall_s: float
     false_merges: int = 0
     false_new: int = 0
+    deferred: int = 0
+    still_open: int = 0
 
     @property
     def covered(self) -> bool:
@@ -102,11 +106,17 @@ class Outcome:
             f"  odo same {self.odometry_same_m:.2f} "
             f"other {self.odometry_other_m:.2f}  {self.wall_s:5.1f} s"
             f"  false merge {self.false_merges} false new {self.false_new}"
+            f"  deferred {self.deferred} open {self.still_open}"
         )
 
 
 def run_case(
-    case: Case, resolution_px: int, explore: str, alike: float = 0.0, odometry_check: bool = True
+    case: Case,
+    resolution_px: int,
+    explore: str,
+    alike: float = 0.0,
+    odometry_check: bool = True,
+    hypotheses: int = 8,
 ) -> Outcome:
     """Record ``case``, replay and score it."""
     from pipemap.localizer import LocalizerConfig
@@ -124,13 +134,15 @@ def run_case(
         explore=Explore(explore),
         alike=alike,
         odometry_check=odometry_check,
+        hypotheses=hypotheses,
     )
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.mcap"
         recorded = record_run(path, settings, network, __version__)
         source = FileSource(path)
-        result = replay(source, LocalizerConfig(odometry_check=odometry_check))
+        config = LocalizerConfig(odometry_check=odometry_check, hypotheses=hypotheses)
+        result = replay(source, config)
         report = score_replay(result, source, settings.threshold)
         truth = true_network(source)
     wall = time.perf_counter() - began
@@ -167,6 +179,8 @@ def run_case(
         wall,
         report.counts()["false_merge"],
         report.counts()["false_new"],
+        len(report.deferred_visits),
+        len(report.open_visits),
     )
 
 
@@ -233,13 +247,17 @@ def main() -> int:
     parser.add_argument(
         "--no-odometry-check", action="store_true", help="the localizer's odometry check off"
     )
+    parser.add_argument(
+        "--hypotheses", type=int, default=8, help="the localizer's live maps at most (8)"
+    )
     args = parser.parse_args()
     todo = cases(args.suite)[args.first :]
     todo = todo if args.count is None else todo[: args.count]
     print(
         f"# bench_explore: {len(todo)} runs, {args.resolution} px, explore {args.explore}, "
         f"alike {args.alike:g}, odometry check "
-        f"{'off' if args.no_odometry_check else 'on'}, {args.jobs} job(s)",
+        f"{'off' if args.no_odometry_check else 'on'}, hypotheses {args.hypotheses}, "
+        f"{args.jobs} job(s)",
         flush=True,
     )
     outcomes: list[Outcome] = []
@@ -252,6 +270,7 @@ def main() -> int:
                 args.explore,
                 args.alike,
                 not args.no_odometry_check,
+                args.hypotheses,
             )
             for c in todo
         ]
@@ -292,7 +311,9 @@ def _summary(outcomes: list[Outcome]) -> None:
     )
     print(
         f"# decisions wrong: {sum(o.false_merges for o in outcomes)} false merges, "
-        f"{sum(o.false_new for o in outcomes)} false new junctions"
+        f"{sum(o.false_new for o in outcomes)} false new junctions; "
+        f"{sum(o.deferred for o in outcomes)} deferred, "
+        f"{sum(o.still_open for o in outcomes)} still open at the end"
     )
     print(f"# wall time: {sum(o.wall_s for o in outcomes):.0f} s in all")
 

@@ -67,6 +67,10 @@ class RecordSettings:
     #: off only to measure what it buys (``benchmarks/bench_explore.py``). Off, the
     #: run metadata says so; on, the log is as without the setting.
     odometry_check: bool = True
+    #: The online localizer's live maps at most (``LocalizerConfig.hypotheses``); 1
+    #: only to measure what they buy. Not 8, the run metadata says so; 8, the log is
+    #: as without the setting.
+    hypotheses: int = 8
 
     def __post_init__(self) -> None:
         try:
@@ -141,6 +145,8 @@ class RecordSettings:
             simulator["placement"].pop("camera")
             simulator["placement"]["condition"] = self.condition.value
         extra = {} if self.odometry_check else {"odometry_check": "false"}
+        if self.hypotheses != 8:
+            extra["hypotheses"] = str(self.hypotheses)
         return {
             "format_version": FORMAT_VERSION,
             "pipemap_version": version,
