@@ -203,9 +203,13 @@ def _traversal_log_likelihood(
     record = topomap.visit_records[-1]
     if record.conflict is not None:
         return math.log(CONFLICT_LIKELIHOOD)
-    if previous is None or departure is None or len(topomap.edges()) != before:
+    if previous is None or len(topomap.edges()) != before:
         return 0.0
-    edge = topomap.edge_at(previous, departure)
+    if departure is not None:
+        edge = topomap.edge_at(previous, departure)
+    else:  # a map without ports: the edge joins the two junctions
+        pair = {previous, branch.node}
+        edge = next((e for e in topomap.edges() if {e.u, e.v} == pair and e.u_port is None), None)
     driven = topomap.last_length_m
     if edge is None or edge.length_m is None or driven is None:
         return 0.0

@@ -10,7 +10,15 @@ from dataclasses import replace
 import pytest
 
 from pipemap.errors import LocalizerError
-from pipemap.localizer import Decision, ImageSet, Localizer, LocalizerConfig, map_document
+from pipemap.localizer import (
+    Decision,
+    ImageSet,
+    Localizer,
+    LocalizerConfig,
+    TopoMap,
+    map_document,
+)
+from pipemap.localizer.hypotheses import Branch, Hypotheses
 from tests.conftest import PaperSet
 
 #: A Y fitting (three pipes 120 degrees apart) and a cross, as the robot's exits.
@@ -105,7 +113,9 @@ def test_odometry_weighs_look_alikes_within_the_gate(paper_sets: dict[str, Paper
     # sigma half the tolerance), is 0.2 as likely: above the prune ratio, it lives.
     same, other = paper_sets["1"].images, paper_sets["4"].images
     loc = Localizer()
-    loc.localize(same, position_m=(0.0, 0.0), odometer_m=0.0)
+    # The pipe from A to the other junction and from B to it are both 5 m: their
+    # lengths do not tell A and B apart.
+    loc.localize(same, position_m=(0.0, 0.0), odometer_m=15.0)
     loc.localize(other, position_m=(5.0, 0.0), odometer_m=20.0)
     loc.new_traversal()
     loc.localize(same, position_m=(0.5, 0.0), odometer_m=30.0)
@@ -114,7 +124,7 @@ def test_odometry_weighs_look_alikes_within_the_gate(paper_sets: dict[str, Paper
     d = loc.localize(same, position_m=(0.45, 0.0), odometer_m=40.0)
     assert d.known and d.node == 2 and d.deferred == (0,)
     one = Localizer(LocalizerConfig(hypotheses=1))
-    one.localize(same, position_m=(0.0, 0.0), odometer_m=0.0)
+    one.localize(same, position_m=(0.0, 0.0), odometer_m=15.0)
     one.localize(other, position_m=(5.0, 0.0), odometer_m=20.0)
     one.new_traversal()
     one.localize(same, position_m=(0.5, 0.0), odometer_m=30.0)
@@ -126,3 +136,47 @@ def test_odometry_weighs_look_alikes_within_the_gate(paper_sets: dict[str, Paper
 def test_bad_hypothesis_settings_are_refused(count: int, ratio: float) -> None:
     with pytest.raises(LocalizerError, match="hypotheses"):
         LocalizerConfig(hypotheses=count, hypothesis_prune_ratio=ratio)
+
+
+def _portless(limit: int = 8, second_m: float = 3.0) -> Hypotheses:
+    """Junctions without ports (image folders without exits): 0 -> 1 (1 m) -> 2
+    (``second_m``), then a new traversal from 3."""
+    hyp = Hypotheses(TopoMap(), limit, 0.01)
+    for node, odometer in ((0, 0.0), (1, 1.0), (2, 1.0 + second_m)):
+        hyp.visit([Branch(node, None, None)], None, odometer)
+        hyp.depart(None)
+    hyp.new_traversal()
+    hyp.visit([Branch(3, None, None)], None, 10.0)
+    return hyp
+
+
+def test_a_pipe_driven_again_at_its_length_settles_a_visit() -> None:
+    # A visit that may be 0 or 2 (no ports to tell), then 1.0 m on to junction 1: the
+    # pipe 0-1 is 1 m long, the pipe 2-1 is 3 m. Only the map where it was 0 fits.
+    hyp = _portless()
+    assert hyp.visit([Branch(0, None, None), Branch(2, None, None)], None, 12.0) == ()
+    assert hyp.open == {4: (0, 2)} and len(hyp.live) == 2
+    assert hyp.visit([Branch(1, None, None)], None, 13.02) == ((4, 0),)
+    assert len(hyp.live) == 1 and hyp.leader.map.visits[-2:] == (0, 1)
+
+
+def test_pipes_of_one_length_settle_nothing() -> None:
+    # Both pipes to junction 1 are 1 m long: driven 1 m, both maps fit; both live.
+    hyp = _portless(second_m=1.0)
+    hyp.visit([Branch(0, None, None), Branch(2, None, None)], None, 12.0)
+    assert hyp.visit([Branch(1, None, None)], None, 13.02) == ()
+    assert hyp.open == {4: (0, 2)}
+
+
+def test_the_bound_keeps_the_heaviest_and_the_ratio_drops_the_unlikely() -> None:
+    hyp = _portless(limit=2)
+    branches = [
+        Branch(0, None, None, -1.0),
+        Branch(1, None, None, 0.0),
+        Branch(2, None, None, -0.5),
+    ]
+    hyp.visit(branches, None, 12.0)
+    assert [h.map.visits[-1] for h in hyp.live] == [1, 2]  # at most 2, heaviest first
+    unlikely = _portless()
+    unlikely.visit([Branch(0, None, None), Branch(2, None, None, math.log(0.005))], None, 12.0)
+    assert len(unlikely.live) == 1 and unlikely.open == {}
