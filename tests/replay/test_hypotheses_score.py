@@ -65,3 +65,19 @@ def test_score_counts_deferred_decisions_right_wrong_and_open() -> None:
         "wrong": 1,
         "open": [known[1]],
     }
+
+
+def test_score_prints_the_deferred_decisions() -> None:
+    from pipemap.cli.replay_commands import _report_text
+    from pipemap.replay import FileSource
+    from pipemap.replay.score import score
+
+    report = score(FileSource(STORED))
+    assert "deferred" not in _report_text("run.mcap", report)
+    known = [v.visit for v in report.visits if v.outcome == "correct_known"]
+    flagged = replace(report, deferred_visits=(known[0], known[1]), open_visits=(known[1],))
+    text = _report_text("run.mcap", flagged)
+    assert (
+        f"deferred    2 decisions kept open among look-alikes: settled 1 right, 0 wrong, "
+        f"1 still open ({known[0]}, {known[1]})"
+    ) in text
