@@ -110,6 +110,12 @@ class Localizer:
         """The topological map: the heaviest hypothesis's (:mod:`localizer.hypotheses`)."""
         return self._hypotheses.leader.map
 
+    @map.setter
+    def map(self, topomap: TopoMap) -> None:
+        """Go on from ``topomap`` as the one map (any other hypotheses are dropped)."""
+        config = self.config
+        self._hypotheses = Hypotheses(topomap, config.hypotheses, config.hypothesis_prune_ratio)
+
     @property
     def open_visits(self) -> dict[int, tuple[int, ...]]:
         """The visits (by index in the map's visit order) that the live hypotheses
