@@ -4,7 +4,7 @@
                                        [--jobs N] [--explore map|right-hand]
                                        [--alike F] [--first K] [--count N]
                                        [--no-odometry-check] [--no-probe-moves]
-                                       [--tilt-deg DEG] [--obstacles N]
+                                       [--tilt-deg DEG] [--obstacles N] [--hypotheses K]
 
 Each run is ``pipemap record`` (autonomous, the online localizer choosing exits from
 its map) into a temporary log, then ``pipemap score`` of that log. One line per run:
@@ -28,7 +28,9 @@ Suites: ``must`` is the issue's list (``paper`` from all 7 starts, ``grid:3x3``,
 worlds (``pipemap record --alike F``: docs/lookalike.md); the line then ends with the
 decisions that went wrong (false merges, false new junctions). ``--first K --count N``
 runs N of the suite's runs from the K-th. ``--no-odometry-check`` records and replays
-with the localizer's odometry check off (the localizer before it existed).
+with the localizer's odometry check off (the localizer before it existed);
+``--hypotheses 1`` with one map (no competing hypotheses: docs/lookalike.md), and the
+line's ``deferred`` counts the decisions the localizer kept open among look-alikes.
 ``--no-probe-moves`` records with the robot making none of the probe moves active
 vision asks for (``pipemap record --no-probe-moves``); ``--tilt-deg`` and
 ``--obstacles`` are ``pipemap record``'s. Each line ends with the probe sweeps the
@@ -92,6 +94,8 @@ class Outcome:
     false_new: int = 0
     probes_made: int = 0
     probes_asked: int = 0
+    deferred: int = 0
+    still_open: int = 0
 
     @property
     def covered(self) -> bool:
@@ -109,6 +113,7 @@ class Outcome:
             f"  odo same {self.odometry_same_m:.2f} "
             f"other {self.odometry_other_m:.2f}  {self.wall_s:5.1f} s"
             f"  false merge {self.false_merges} false new {self.false_new}"
+            f"  deferred {self.deferred} open {self.still_open}"
             f"  probes {self.probes_made}/{self.probes_asked}"
         )
 
@@ -122,6 +127,7 @@ def run_case(
     probe_moves: bool = True,
     tilt_deg: float = 0.0,
     obstacles: int = 0,
+    hypotheses: int = 8,
 ) -> Outcome:
     """Record ``case``, replay and score it."""
     from pipemap.localizer import LocalizerConfig
@@ -142,13 +148,15 @@ def run_case(
         probe_moves=probe_moves,
         tilt_rad=math.radians(tilt_deg),
         obstacles=obstacles,
+        hypotheses=hypotheses,
     )
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "run.mcap"
         recorded = record_run(path, settings, network, __version__)
         source = FileSource(path)
-        result = replay(source, LocalizerConfig(odometry_check=odometry_check))
+        config = LocalizerConfig(odometry_check=odometry_check, hypotheses=hypotheses)
+        result = replay(source, config)
         report = score_replay(result, source, settings.threshold)
         truth = true_network(source)
     wall = time.perf_counter() - began
@@ -185,8 +193,12 @@ def run_case(
         wall,
         report.counts()["false_merge"],
         report.counts()["false_new"],
-        sum(p.similarity is not None for v in result.visits for p in v.decision.probes),
-        sum(len(v.decision.probes) for v in result.visits),
+        probes_made=sum(
+            p.similarity is not None for v in result.visits for p in v.decision.probes
+        ),
+        probes_asked=sum(len(v.decision.probes) for v in result.visits),
+        deferred=len(report.deferred_visits),
+        still_open=len(report.open_visits),
     )
 
 
@@ -258,6 +270,8 @@ def main() -> int:
     )
     parser.add_argument("--tilt-deg", type=float, default=0.0, help="record --tilt-deg (0)")
     parser.add_argument("--obstacles", type=int, default=0, help="record --obstacles (0)")
+        "--hypotheses", type=int, default=8, help="the localizer's live maps at most (8)"
+    )
     args = parser.parse_args()
     todo = cases(args.suite)[args.first :]
     todo = todo if args.count is None else todo[: args.count]
@@ -266,7 +280,7 @@ def main() -> int:
         f"alike {args.alike:g}, odometry check "
         f"{'off' if args.no_odometry_check else 'on'}, probe moves "
         f"{'off' if args.no_probe_moves else 'on'}, tilt {args.tilt_deg:g} deg, "
-        f"{args.obstacles} obstacle(s), {args.jobs} job(s)",
+        f"{args.obstacles} obstacle(s), hypotheses {args.hypotheses}, {args.jobs} job(s)",
         flush=True,
     )
     outcomes: list[Outcome] = []
@@ -282,6 +296,7 @@ def main() -> int:
                 not args.no_probe_moves,
                 args.tilt_deg,
                 args.obstacles,
+                args.hypotheses,
             )
             for c in todo
         ]
@@ -322,7 +337,9 @@ def _summary(outcomes: list[Outcome]) -> None:
     )
     print(
         f"# decisions wrong: {sum(o.false_merges for o in outcomes)} false merges, "
-        f"{sum(o.false_new for o in outcomes)} false new junctions; probe sweeps made "
+        f"{sum(o.false_new for o in outcomes)} false new junctions; "
+        f"{sum(o.deferred for o in outcomes)} deferred, "
+        f"{sum(o.still_open for o in outcomes)} still open at the end; probe sweeps made "
         f"{sum(o.probes_made for o in outcomes)} of {sum(o.probes_asked for o in outcomes)} "
         "asked for"
     )

@@ -1,6 +1,7 @@
 """Decision latency during a replay: the defaults against the paper's NCC alone.
 
-    python benchmarks/bench_score.py LOG [--repeat N] [--against no-two-view|no-odometry-check]
+    python benchmarks/bench_score.py LOG [--repeat N]
+                                     [--against no-two-view|no-odometry-check|one-hypothesis]
 
 Replays LOG the way ``pipemap score`` does (``api.replay``), once at pipemap's
 defaults and once without the two-view check (``--no-two-view``), N times each
@@ -11,7 +12,8 @@ median and largest over the visits, the ratio of the means, and where the time o
 the defaults goes (the phases of :mod:`pipemap.localizer.phases`, wall clock, each
 visit's quickest try). Issue 17's target: the defaults at most 2x
 ``--no-two-view`` on a 400 px ``paper`` log. ``--against no-odometry-check`` compares
-the defaults with the localizer's odometry check off instead (docs/lookalike.md).
+the defaults with the localizer's odometry check off instead, ``--against
+one-hypothesis`` with one map (``--hypotheses 1``: no competing maps) (docs/lookalike.md).
 """
 
 from __future__ import annotations
@@ -65,19 +67,21 @@ def main() -> int:
     parser.add_argument("log", type=Path)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument(
-        "--against", choices=["no-two-view", "no-odometry-check"], default="no-two-view"
+        "--against",
+        choices=["no-two-view", "no-odometry-check", "one-hypothesis"],
+        default="no-two-view",
     )
     args = parser.parse_args()
     keep_freed_memory()  # as pipemap's commands run (pipemap.allocator)
     log = api.open_log(args.log)
     defaults = LocalizerConfig()
-    other = f"--{args.against}"
-    configs = {
-        "defaults": defaults,
-        other: replace(defaults, two_view=False, verify=False)
-        if args.against == "no-two-view"
-        else replace(defaults, odometry_check=False),
+    other = "--hypotheses 1" if args.against == "one-hypothesis" else f"--{args.against}"
+    against = {
+        "no-two-view": replace(defaults, two_view=False, verify=False),
+        "no-odometry-check": replace(defaults, odometry_check=False),
+        "one-hypothesis": replace(defaults, hypotheses=1),
     }
+    configs = {"defaults": defaults, other: against[args.against]}
     tries: dict[str, list[list[Timed]]] = {name: [] for name in configs}
     for _ in range(args.repeat):
         for name, config in configs.items():

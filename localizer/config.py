@@ -91,6 +91,12 @@ class LocalizerConfig:
     #: this of the recognised junction's similarity are named as alike
     #: (``Decision.alike``): junctions nothing told apart.
     alike_margin: float = 0.02
+    #: Where junctions named alike also fit the sweep's keypoints and ports, keep a
+    #: map for each (:mod:`localizer.hypotheses`): at most this many live at once
+    #: (1: one map, the best ranked junction is taken), and one weighing less than
+    #: ``hypothesis_prune_ratio`` of the best is dropped. Not in the paper.
+    hypotheses: int = 8
+    hypothesis_prune_ratio: float = 0.01
     #: The sweeps are lit by the robot's own lamp: divide every image by its own
     #: illumination estimate (:mod:`localizer.illumination`) before matching, and
     #: when the two-view fit at the NCC's rotation fails, fit again at any rotation
@@ -130,6 +136,11 @@ class LocalizerConfig:
             self.odometry_limit_m,
             self.alike_margin,
         )
+        if self.hypotheses < 1 or not 0.0 < self.hypothesis_prune_ratio < 1.0:
+            raise LocalizerError(
+                f"hypotheses must be >= 1 and their prune ratio in (0, 1), got "
+                f"{self.hypotheses} and {self.hypothesis_prune_ratio}"
+            )
         if not all(math.isfinite(v) and v >= 0.0 for v in odometry):
             raise LocalizerError(f"odometry tolerances must be finite and >= 0, got {odometry}")
         if not 0.0 < self.port_tolerance_rad < math.pi / 2.0:

@@ -99,6 +99,12 @@ class Decision:
     odometry) and matched within ``LocalizerConfig.alike_margin`` of its similarity,
     and the map did not expect the recognised one. The decision is then the best
     ranked of equals, not told apart by anything: it says so rather than pass for sure.
+
+    ``hypotheses`` is the number of maps alive after this visit
+    (:mod:`localizer.hypotheses`); ``deferred`` the other junctions this visit may
+    still be (it is open: the maps disagree, ``node`` is the heaviest map's); and
+    ``settled`` the earlier open visits this one decided, each as ``(visit index,
+    node)`` (visit index in the map's visit order).
     """
 
     node: int
@@ -115,6 +121,9 @@ class Decision:
     port_residual_rad: float | None = None
     rejected: tuple[tuple[int, str], ...] = ()
     alike: tuple[int, ...] = ()
+    hypotheses: int = 1
+    deferred: tuple[int, ...] = ()
+    settled: tuple[tuple[int, int], ...] = ()
 
     @property
     def rotation_rad(self) -> float | None:
@@ -147,6 +156,13 @@ class Decision:
             parts.append(f"{node} rejected: {why}")
         if self.alike:
             parts.append(f"as alike: {', '.join(map(str, self.alike))} (nothing told them apart)")
+        if self.deferred:
+            parts.append(
+                f"deferred: may be {', '.join(map(str, self.deferred))} "
+                f"({self.hypotheses} hypotheses alive)"
+            )
+        for visit, node in self.settled:
+            parts.append(f"visit {visit} settled as junction {node}")
         return "; ".join(parts)
 
 

@@ -40,8 +40,10 @@ from pipemap.localizer.decision import (
     probe_plan,
 )
 from pipemap.localizer.fastmatch import UNSCREENED, FastMatcher, PreparedSet
+from pipemap.localizer.hypotheses import Branch, Hypotheses, port_log_likelihood
 from pipemap.localizer.illumination import normalised
 from pipemap.localizer.imageset import ImageSet
+from pipemap.localizer.odometry import DeadReckoning
 from pipemap.localizer.phases import PhaseClock
 from pipemap.localizer.ports import (
     PortMatch,
@@ -95,15 +97,37 @@ class Localizer:
         self._matcher = FastMatcher(self.config.fast)
         #: Keypoints by node (with ``config.two_view``), computed once per sweep, kept compact.
         self._features: list[StoredFeatures] = []
-        self.map = TopoMap()
+        self._hypotheses = Hypotheses(
+            TopoMap(), self.config.hypotheses, self.config.hypothesis_prune_ratio
+        )
         self._last: Decision | None = None
-        #: Dead reckoning at each junction's first visit (``None``: not given).
-        self._positions: dict[int, tuple[float, float] | None] = {}
-        self._here: tuple[float, float] | None = None
-        self._tolerance_m = 0.0
+        self._odometry = DeadReckoning(self.config)
         #: The last visit's own sweep as the matcher prepared it (lit), for whoever
         #: compares visits later (a score's pairs); ``None`` before the first.
         self.last_prepared: PreparedSet | None = None
+
+    @property
+    def map(self) -> TopoMap:
+        """The topological map: the heaviest hypothesis's (:mod:`localizer.hypotheses`)."""
+        return self._hypotheses.leader.map
+
+    @map.setter
+    def map(self, topomap: TopoMap) -> None:
+        """Go on from ``topomap`` as the one map (any other hypotheses are dropped)."""
+        config = self.config
+        self._hypotheses = Hypotheses(topomap, config.hypotheses, config.hypothesis_prune_ratio)
+
+    @property
+    def open_visits(self) -> dict[int, tuple[int, ...]]:
+        """The visits (by index in the map's visit order) that the live hypotheses
+        give different junctions, each with those junctions, the map's first: what
+        nothing has told apart yet."""
+        return dict(self._hypotheses.open)
+
+    @property
+    def hypotheses_alive(self) -> int:
+        """The number of live hypotheses (maps)."""
+        return len(self._hypotheses.live)
 
     @property
     def known_count(self) -> int:
@@ -155,8 +179,7 @@ class Localizer:
         ``position_m`` (dead reckoning, in the start's frame) rules out, with
         ``odometry_check``, the known junctions too far from where they were.
         """
-        self._here = None if position_m is None else (float(position_m[0]), float(position_m[1]))
-        self._tolerance_m = self._odometry_tolerance_m(odometer_m)
+        self._odometry.at(position_m, odometer_m)
         timer = PhaseClock(self._clock)
         exits = None if exits_rad is None else tuple(float(e) for e in exits_rad)
         query = self._lit(query)
@@ -238,7 +261,7 @@ class Localizer:
             exit_ports = None if ports is None else ports.exit_ports
         else:
             node = self._matcher.add(prepared)
-            self._positions[node] = self._here
+            self._odometry.remember(node)
             if stored is not None:
                 if matched is not query:  # a probe's: remember the visit's own sweep
                     timer.lap("map")
@@ -248,11 +271,32 @@ class Localizer:
             exit_ports = None
             if exits is not None:
                 new_ports, exit_ports = clockwise_ports(exits)
-        arrival = None
-        if exits is not None and exit_ports is not None and self.map.previous is not None:
+        behind = None
+        if exits is not None and self.map.previous is not None:
             behind = _nearest_exit(exits, math.pi, _DEPARTURE_TOLERANCE_RAD)
-            arrival = None if behind is None else exit_ports[behind]
-        self.map.visit(node, new_ports, arrival, odometer_m)
+        arrival = None if behind is None or exit_ports is None else exit_ports[behind]
+        branches = [Branch(node, arrival, exit_ports, self._evidence(node, ports))]
+        fits = {node: (match, fit, ports)}
+        if known and alike and features is not None and self.config.hypotheses > 1:
+            for j in alike:
+                j_fit = self._fit(j, features, matched_all[j].rotation_rad, 0, exits, turn)
+                if j_fit is None or j_fit.inliers < self.config.verify_inliers:
+                    continue
+                j_ports = self._ports_of(j, exits, j_fit.turned(turn).rotation_rad)
+                if j_ports is not None and not j_ports.agrees and self.config.port_check:
+                    continue
+                j_exit = None if j_ports is None else j_ports.exit_ports
+                j_arrival = None if behind is None or j_exit is None else j_exit[behind]
+                branches.append(Branch(j, j_arrival, j_exit, self._evidence(j, j_ports)))
+                fits[j] = (matched_all[j].turned(turn), j_fit.turned(turn), j_ports)
+        settled = self._hypotheses.visit(branches, new_ports, odometer_m)
+        index = len(self.map.visit_records) - 1
+        if self.map.visits[-1] != node:  # another branch weighs more at once
+            node = self.map.visits[-1]
+            match, fit, ports = fits[node]
+            assert match is not None
+            best, sim, arrival = node, match.similarity, self.map.visit_records[-1].arrival_port
+            exit_ports = None if ports is None else ports.exit_ports
         decision = Decision(
             node=node,
             known=known,
@@ -268,6 +312,9 @@ class Localizer:
             port_residual_rad=None if ports is None else ports.residual_rad,
             rejected=tuple(rejected),
             alike=alike,
+            hypotheses=len(self._hypotheses.live),
+            deferred=tuple(n for n in self._hypotheses.open.get(index, ()) if n != node),
+            settled=settled,
         )
         self._last = decision
         timer.lap("map")
@@ -326,37 +373,26 @@ class Localizer:
         leaves at pi, its scan may have put that pipe a little off). Returns that
         port, or ``None`` when it is not known (no exits, or none near)."""
         last = self._last
-        port = None
+        index = None
         if exit_rad is not None and last is not None and last.exits_rad is not None:
             index = _nearest_exit(last.exits_rad, exit_rad, _DEPARTURE_TOLERANCE_RAD)
-            if index is not None and last.exit_ports is not None:
-                port = last.exit_ports[index]
-        self.map.depart(port)
-        return port
+        return self._hypotheses.depart(index)
 
     def block(self) -> int | None:
         """The robot gave up the pipe it last left by and is back at the junction of
         its last visit: that port is blocked (:meth:`TopoMap.block`). Returns it."""
-        return self.map.block()
+        return self._hypotheses.block()
 
     def new_traversal(self) -> None:
         """The next visit does not follow the last (the robot starts a new run on this
         map): no edge joins them, and the last junction is a candidate again."""
-        self.map.new_traversal()
+        self._hypotheses.new_traversal()
         self._last = None
 
-    def _odometry_tolerance_m(self, odometer_m: float | None) -> float:
-        c = self.config
-        driven = 0.0 if odometer_m is None else odometer_m
-        return min(c.odometry_radius_m + c.odometry_drift_per_m * driven, c.odometry_limit_m)
-
-    def _near(self, node: int) -> bool:
-        """Whether the robot may be at known junction ``node`` by its dead reckoning
-        (it may when either position is unknown or the check is off)."""
-        there = self._positions.get(node)
-        if not self.config.odometry_check or self._here is None or there is None:
-            return True
-        return math.dist(self._here, there) <= self._tolerance_m
+    def _evidence(self, node: int, ports: PortMatch | None) -> float:
+        """The visit's log-likelihood of being known junction ``node`` (odometry, ports)."""
+        tolerance = self.config.port_tolerance_rad
+        return self._odometry.log_likelihood(node) + port_log_likelihood(ports, tolerance)
 
     def _lit(self, image_set: ImageSet) -> ImageSet:
         """The set as the matcher sees it: normalised if lamp-lit."""
@@ -432,7 +468,7 @@ class Localizer:
                 0 <= i < len(matches)
                 and i != exclude
                 and self._allowed_rotations(i, exits, turn) != ()
-                and self._near(i)
+                and self._odometry.near(i)
             )
 
         # Refined junctions first, then screened ones: the two scores differ in scale.

@@ -12,7 +12,7 @@ machine.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from pipemap.localizer.decision import Decision
@@ -38,9 +38,12 @@ def decision_record(
     port it left by and any conflict its arrival met."""
     match, fit = decision.match, decision.two_view
     exits = decision.exits_rad
+    node = decision.node if visit is None else visit.node
     return {
         "set": label,
-        "node": decision.node,
+        "node": node,
+        # Where the map's hypotheses changed it: what the decision said at the time.
+        **({"decided_node": decision.node} if node != decision.node else {}),
         "known": decision.known,
         # No candidate (the first visits): nothing was compared, so no similarity.
         "similarity": None if decision.candidate is None else _round(decision.similarity),
@@ -70,18 +73,40 @@ def decision_record(
         "port_residual_rad": _round(decision.port_residual_rad),
         "rejected": [{"candidate": c, "reason": r} for c, r in decision.rejected],
         "conflict": None if visit is None else visit.conflict,
+        **_hypotheses(decision),
     }
 
 
-def map_document(topomap: TopoMap, visits: Sequence[tuple[str, Decision]]) -> dict[str, Any]:
+def _hypotheses(decision: Decision) -> dict[str, Any]:
+    """The decision's hypotheses (:mod:`localizer.hypotheses`), when there were
+    more than one map: how many lived after it, the junctions it was deferred
+    among, the earlier visits it settled."""
+    if decision.hypotheses == 1 and not decision.deferred and not decision.settled:
+        return {}
+    return {
+        "hypotheses": decision.hypotheses,
+        "deferred": list(decision.deferred),
+        "settled": [{"visit": i, "node": n} for i, n in decision.settled],
+    }
+
+
+def map_document(
+    topomap: TopoMap,
+    visits: Sequence[tuple[str, Decision]],
+    open_visits: Mapping[int, Sequence[int]] | None = None,
+) -> dict[str, Any]:
     """The whole document: the map, then each visit with its label and decision (in
-    the map's visit order, one decision per visit)."""
+    the map's visit order, one decision per visit), and, when its hypotheses
+    disagree on some visits (:attr:`Localizer.open_visits`), those visits with the
+    junctions each may be, the map's first (``"open"``): nothing told them apart."""
     doc = topomap.to_dict()
     records = topomap.visit_records
     doc["visits"] = [
         decision_record(label, d, records[i] if i < len(records) else None)
         for i, (label, d) in enumerate(visits)
     ]
+    if open_visits:
+        doc["open"] = [{"visit": i, "nodes": list(n)} for i, n in sorted(open_visits.items())]
     return doc
 
 

@@ -152,6 +152,15 @@ class TopoMap:
             return self._visits[-1].node
         return None
 
+    @property
+    def last_length_m(self) -> float | None:
+        """The distance driven from the visit before the last to the last (``None``:
+        unknown, or the last visit began a traversal)."""
+        if len(self._visits) - self._traversal_start < 2:
+            return None
+        before, after = self._odometer[-2], self._odometer[-1]
+        return None if before is None or after is None else after - before
+
     def ports(self, node: int) -> tuple[float, ...] | None:
         """The angles of ``node``'s ports in its first-visit frame (``None``: unknown)."""
         return self._ports[node]

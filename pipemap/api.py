@@ -354,7 +354,7 @@ def map_image_sets(
             _LOG.debug("%s: %s", name, decision.describe())
         if notes.departure_rad is not None:
             localizer.depart(notes.departure_rad)
-    return map_document(localizer.map, visits)
+    return map_document(localizer.map, visits, localizer.open_visits)
 
 
 def _new_file(path: str | Path, overwrite: bool) -> Path:

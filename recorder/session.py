@@ -391,7 +391,11 @@ def record_run(
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
     camera = settings.camera()
-    config = LocalizerConfig(threshold=settings.threshold, odometry_check=settings.odometry_check)
+    config = LocalizerConfig(
+        threshold=settings.threshold,
+        odometry_check=settings.odometry_check,
+        hypotheses=settings.hypotheses,
+    )
     localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
     deposits = settings.deposits(network)  # checked before the log is opened
     mode = "wb" if overwrite else "xb"

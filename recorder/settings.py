@@ -80,6 +80,10 @@ class RecordSettings:
     #: measure what they change), the run metadata says so; on, a run that asks for
     #: no probe logs as without the setting.
     probe_moves: bool = True
+    #: The online localizer's live maps at most (``LocalizerConfig.hypotheses``); 1
+    #: only to measure what they buy. Not 8, the run metadata says so; 8, the log is
+    #: as without the setting.
+    hypotheses: int = 8
 
     def __post_init__(self) -> None:
         try:
@@ -156,6 +160,8 @@ class RecordSettings:
         extra = {} if self.odometry_check else {"odometry_check": "false"}
         if not self.probe_moves and self.condition is Condition.AUTONOMOUS:
             extra["probe_moves"] = "false"
+        if self.hypotheses != 8:
+            extra["hypotheses"] = str(self.hypotheses)
         return {
             "format_version": FORMAT_VERSION,
             "pipemap_version": version,

@@ -157,7 +157,9 @@ class ReplayResult:
     def document(self) -> dict[str, Any]:
         """The map document, in the format of ``pipemap map --json``."""
         return map_document(
-            self.topomap, [(visit_label(v.visit_id), v.decision) for v in self.visits]
+            self.topomap,
+            [(visit_label(v.visit_id), v.decision) for v in self.visits],
+            None if self.localizer is None else self.localizer.open_visits,
         )
 
 

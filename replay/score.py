@@ -130,6 +130,11 @@ class ScoreReport:
     #: The visits whose decision named other junctions as alike (``Decision.alike``):
     #: recognised as the best ranked of junctions nothing told apart.
     alike_visits: tuple[str, ...] = ()
+    #: The visits whose decision was deferred: the localizer kept a map for each
+    #: junction it might be (``Decision.deferred``); scored by the map's final node.
+    deferred_visits: tuple[str, ...] = ()
+    #: Of those, the ones still open when the run ended (nothing told them apart).
+    open_visits: tuple[str, ...] = ()
 
     @property
     def map_status(self) -> str:
@@ -151,6 +156,18 @@ class ScoreReport:
             "visits": list(self.alike_visits),
             "right": right,
             "wrong": len(self.alike_visits) - right,
+        }
+
+    def _deferred(self) -> dict[str, Any]:
+        """The deferred decisions: how the settled ones went, and those left open."""
+        outcomes = {v.visit: v.outcome for v in self.visits}
+        settled = [v for v in self.deferred_visits if v not in self.open_visits]
+        right = sum(outcomes.get(v) == "correct_known" for v in settled)
+        return {
+            "visits": list(self.deferred_visits),
+            "right": right,
+            "wrong": len(settled) - right,
+            "open": list(self.open_visits),
         }
 
     def document(self, with_latency: bool = True) -> dict[str, Any]:
@@ -183,6 +200,7 @@ class ScoreReport:
             **({} if self.blocked is None else {"blocked": self.blocked.document()}),
             **({"look_alike": [list(g) for g in self.look_alike]} if self.look_alike else {}),
             **({"undecided": self._undecided()} if self.alike_visits else {}),
+            **({"deferred": self._deferred()} if self.deferred_visits else {}),
             "visits": len(self.visits),
             "true_nodes": self.true_nodes,
             "predicted_nodes": self.predicted_nodes,
@@ -313,7 +331,9 @@ def score_replay(
         if index in result.breaks:
             breaks.append(len(visits))
         truth = truths.get(v.sweep_id)
-        unknown = v.decision.known and v.decision.node not in created
+        # The map's node for the visit: a deferred decision is scored as settled.
+        node = records[index].node if index < len(records) else v.decision.node
+        unknown = v.decision.known and node not in created
         if truth is None or unknown:
             if source.integrity is Integrity.OK and not truth_notes and truth is None:
                 raise LogFormatError(f"{source.name}: no ground truth for sweep {v.sweep_id}")
@@ -334,11 +354,11 @@ def score_replay(
         d = v.decision
         heading = truth.yaw_rad - _camera_angle(result, v.sweep_id)
         if d.known:
-            right = created[d.node][0] == truth.node and truth.node in seen
+            right = created[node][0] == truth.node and truth.node in seen
             outcome = "correct_known" if right else "false_merge"
         else:
             outcome = "false_new" if truth.node in seen else "correct_new"
-            created[d.node] = (truth.node, heading)
+            created[node] = (truth.node, heading)
         seen.add(truth.node)
         estimate = true_turn = error = None
         if d.match is not None and d.candidate is not None:
@@ -351,7 +371,7 @@ def score_replay(
             VisitScore(
                 visit=visit_label(v.visit_id),
                 true_node=truth.node,
-                predicted_node=d.node,
+                predicted_node=node,
                 known=d.known,
                 outcome=outcome,
                 similarity=None if d.candidate is None else d.similarity,
@@ -401,7 +421,19 @@ def score_replay(
         replay_notes=tuple(result.warnings),
         look_alike=look_alike_groups(source.run_metadata()),
         alike_visits=tuple(visit_label(v.visit_id) for v in result.visits if v.decision.alike),
+        deferred_visits=tuple(
+            visit_label(v.visit_id) for v in result.visits if v.decision.deferred
+        ),
+        open_visits=_open_visits(result),
     )
+
+
+def _open_visits(result: ReplayResult) -> tuple[str, ...]:
+    """The visits the localizer's maps still disagree on at the end of the replay."""
+    if result.localizer is None:
+        return ()
+    open_ = result.localizer.open_visits
+    return tuple(visit_label(v.visit_id) for i, v in enumerate(result.visits) if i in open_)
 
 
 def look_alike_groups(run: dict[str, str]) -> tuple[tuple[str, ...], ...]:

@@ -51,3 +51,24 @@ def test_it_compares_the_defaults_with_the_odometry_check_off() -> None:
     assert done.returncode == 0, done.stderr
     assert re.search(r"defaults / --no-odometry-check \(CPU means\): \d+\.\d\dx", done.stdout)
     assert re.search(r"^--no-odometry-check +11 decisions", done.stdout, re.MULTILINE)
+
+
+def test_it_compares_the_defaults_with_one_hypothesis() -> None:
+    log = REPO / "recordings" / "random8_loops.mcap"
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "benchmarks" / "bench_score.py"),
+            str(log),
+            "--repeat",
+            "1",
+            "--against",
+            "one-hypothesis",
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert re.search(r"defaults / --hypotheses 1 \(CPU means\): \d+\.\d\dx", done.stdout)
+    assert re.search(r"^--hypotheses 1 +11 decisions", done.stdout, re.MULTILINE)

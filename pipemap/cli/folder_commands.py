@@ -14,6 +14,7 @@ from typing import Any, TextIO
 from pipemap import api
 from pipemap.cli.localizer_options import (
     fast_config,
+    hypotheses,
     illumination_setting,
     port_check,
     rule_config,
@@ -103,6 +104,7 @@ def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         two_view=two_view,
         verify=verify,
         port_check=port_check(args),
+        hypotheses=hypotheses(args),
         lamp=illumination_setting(args),
     )
     doc = api.map_image_sets(args.dirs, rule_config(args, config), args.fov_deg, args.keep_top)

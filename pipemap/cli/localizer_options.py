@@ -164,6 +164,15 @@ def add_rule_options(p: argparse.ArgumentParser) -> None:
         "it (by default one farther than the odometry's drift allows is not: junctions "
         "that look alike stay apart)",
     )
+    p.add_argument(
+        "--hypotheses",
+        type=arguments.positive_int,
+        default=8,
+        metavar="K",
+        help="where junctions that look alike fit a visit equally, keep a map for each, "
+        "at most K at once, weighed by odometry, ports and later pipes (default 8; 1: one "
+        "map, the best ranked junction is taken; docs/lookalike.md)",
+    )
     add_illumination(p)
 
 
@@ -193,6 +202,11 @@ def port_check(args: argparse.Namespace) -> bool:
 def odometry_check(args: argparse.Namespace) -> bool:
     """``odometry_check`` of :class:`localizer.LocalizerConfig` from ``--no-odometry-check``."""
     return not getattr(args, "no_odometry_check", False)
+
+
+def hypotheses(args: argparse.Namespace) -> int:
+    """``hypotheses`` of :class:`localizer.LocalizerConfig` from ``--hypotheses``."""
+    return int(getattr(args, "hypotheses", 8))
 
 
 def illumination_setting(args: argparse.Namespace) -> bool | None:

@@ -18,6 +18,7 @@ from typing import Any, TextIO
 
 from pipemap.cli.localizer_options import (
     fast_config,
+    hypotheses,
     illumination_setting,
     odometry_check,
     port_check,
@@ -54,6 +55,7 @@ def localizer_config(args: argparse.Namespace) -> Any:
         verify=verify,
         port_check=port_check(args),
         odometry_check=odometry_check(args),
+        hypotheses=hypotheses(args),
         lamp=illumination_setting(args),
     )
     return rule_config(args, config)
@@ -248,6 +250,13 @@ def _report_text(log: str, report: Any) -> str:
             f"undecided   {len(undecided['visits'])} visits recognised among junctions "
             f"nothing told apart: {undecided['right']} right, {undecided['wrong']} wrong "
             f"({', '.join(undecided['visits'])})"
+        )
+    if "deferred" in doc:
+        deferred = doc["deferred"]
+        lines.append(
+            f"deferred    {len(deferred['visits'])} decisions kept open among look-alikes: "
+            f"settled {deferred['right']} right, {deferred['wrong']} wrong, "
+            f"{len(deferred['open'])} still open ({', '.join(deferred['visits'])})"
         )
     ports = {True: "correct", False: "WRONG", None: "none (no exits in the log)"}
     latency = doc["latency_ms"]

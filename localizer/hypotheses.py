@@ -1,0 +1,199 @@
+"""Competing maps where appearance cannot tell junctions apart.
+
+When a revisit fits several known junctions equally well (look-alike junctions:
+``record --alike``) and nothing of the visit itself tells them apart, the localizer
+does not bet the map on the best ranked one: it keeps a map per junction the visit
+may be (:class:`Hypotheses`), each with a weight, and lets what appearance cannot
+fake decide later. This is the multi-hypothesis topological mapping of Tully, Kantor
+and Choset (2009), on the edge-ordered graph the map already is (ports in cyclic
+order), restricted to the identity of revisits: every hypothesis has the same nodes
+and differs only in which known junction some visits were.
+
+The weight of a hypothesis is the product of the likelihoods of what it says:
+
+* **Odometry** (at the visit that branches): the robot's dead reckoning against the
+  junction's first-visit position, a Gaussian whose sigma is half the drift
+  tolerance (:meth:`Localizer.localize`'s odometry check stays a gate around it).
+* **Ports**: the misfit of the visit's exits with the junction's ports after the
+  fit's turn, a Gaussian with sigma ``port_tolerance_rad``.
+* **Graph consistency**: a later traversal that joins a pipe end its map already
+  joins elsewhere (a port conflict, :class:`TopoMap`) multiplies the weight by
+  ``CONFLICT_LIKELIHOOD``; a pipe driven again whose length differs from the first
+  time by more than the odometry allows weighs by a Gaussian in the difference
+  (sigma ``LENGTH_SIGMA_M`` plus ``LENGTH_SIGMA_PER_M`` of the pipe's length).
+
+Bounded: at most ``limit`` hypotheses live (the heaviest; ties keep the older), and
+one whose weight falls below ``prune_ratio`` of the best is dropped. A visit whose
+hypotheses disagree on its junction is *open*; it is *settled* when the survivors
+agree, and the map the localizer shows is always the heaviest hypothesis's.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+
+from pipemap.localizer.ports import PortMatch
+from pipemap.localizer.similarity import SetMatch
+from pipemap.localizer.topomap import TopoMap
+
+__all__ = [
+    "CONFLICT_LIKELIHOOD",
+    "Branch",
+    "Hypotheses",
+    "Hypothesis",
+    "port_log_likelihood",
+]
+
+#: A map whose pipe end would lead to two places is this much less likely: one
+#: conflict drops a hypothesis under the default prune ratio when another has none.
+CONFLICT_LIKELIHOOD = 1e-3
+#: Sigma of a pipe's length driven again against its first length: the explorer's
+#: odometry is good to a few centimetres a metre (``ExploreConfig``).
+LENGTH_SIGMA_M = 0.05
+LENGTH_SIGMA_PER_M = 0.02
+
+
+@dataclass(frozen=True)
+class Branch:
+    """One junction a visit may be: its node, the port it arrived by, the port of
+    the node that each exit is, and the log-likelihood of what the visit itself
+    says of it (odometry and ports)."""
+
+    node: int
+    arrival_port: int | None
+    exit_ports: tuple[int, ...] | None
+    log_likelihood: float = 0.0
+
+
+@dataclass
+class Hypothesis:
+    """One map, its log weight, and the node of each visit that branched."""
+
+    map: TopoMap
+    log_weight: float = 0.0
+    #: Visit index -> node, for the visits where the hypotheses branched.
+    nodes: dict[int, int] = field(default_factory=dict)
+    #: The last visit's exit ports under this hypothesis (for :meth:`Hypotheses.depart`).
+    exit_ports: tuple[int, ...] | None = None
+
+
+class Hypotheses:
+    """The live hypotheses, heaviest first after every update."""
+
+    def __init__(self, topomap: TopoMap, limit: int, prune_ratio: float) -> None:
+        self.limit = limit
+        self.log_prune = math.log(prune_ratio) if prune_ratio > 0.0 else -math.inf
+        self.live = [Hypothesis(topomap)]
+        #: Visit index -> the nodes the live hypotheses give it, while they disagree.
+        self.open: dict[int, tuple[int, ...]] = {}
+        #: Whether more than one hypothesis was ever alive.
+        self.branched = False
+
+    @property
+    def leader(self) -> Hypothesis:
+        """The heaviest hypothesis (the oldest of equals)."""
+        return self.live[0]
+
+    def visit(
+        self,
+        branches: list[Branch],
+        ports: tuple[float, ...] | None,
+        odometer_m: float | None,
+    ) -> tuple[tuple[int, int], ...]:
+        """Add a visit to every live hypothesis, branching each into ``branches`` (one:
+        no branching), weigh and prune. Returns the open visits this one settled,
+        each as ``(visit index, node)``."""
+        index = len(self.leader.map.visit_records)
+        grown: list[Hypothesis] = []
+        for h in self.live:
+            for k, branch in enumerate(branches):
+                last = k == len(branches) - 1
+                topomap = h.map if last else copy.deepcopy(h.map)
+                nodes = h.nodes if last else dict(h.nodes)
+                weight = h.log_weight + branch.log_likelihood
+                weight += _traversal_log_likelihood(topomap, branch, ports, odometer_m)
+                if len(branches) > 1:
+                    nodes[index] = branch.node
+                grown.append(Hypothesis(topomap, weight, nodes, branch.exit_ports))
+        if len(branches) > 1:
+            self.branched = True
+        return self._prune(grown)
+
+    def _prune(self, grown: list[Hypothesis]) -> tuple[tuple[int, int], ...]:
+        best = max(h.log_weight for h in grown)
+        # Stable: the hypothesis that came first (the best ranked branch) wins ties.
+        kept = sorted(
+            (h for h in grown if h.log_weight - best >= self.log_prune),
+            key=lambda h: -h.log_weight,
+        )[: self.limit]
+        for h in kept:
+            h.log_weight -= best
+        self.live = kept
+        settled = []
+        candidates = set(self.open) | {i for h in kept for i in h.nodes}
+        self.open = {}
+        for i in sorted(candidates):
+            nodes = tuple(dict.fromkeys(h.nodes.get(i, -1) for h in kept))
+            if len(nodes) > 1:
+                self.open[i] = nodes
+            elif nodes[0] >= 0 and any(i in h.nodes for h in kept):
+                settled.append((i, nodes[0]))
+                for h in kept:
+                    h.nodes.pop(i, None)
+        return tuple(settled)
+
+    def depart(self, exit_index: int | None) -> int | None:
+        """Every hypothesis leaves by the exit ``exit_index`` of the last visit (each
+        names it by its own port); returns the leader's port."""
+        for h in self.live:
+            port = None
+            if exit_index is not None and h.exit_ports is not None:
+                port = h.exit_ports[exit_index]
+            h.map.depart(port)
+        return self.leader.map.visit_records[-1].departure_port
+
+    def block(self) -> int | None:
+        """The last departure was blocked, in every hypothesis; returns the leader's port."""
+        ports = [h.map.block() for h in self.live]
+        return ports[0]
+
+    def new_traversal(self) -> None:
+        """The next visit does not follow the last, in every hypothesis."""
+        for h in self.live:
+            h.map.new_traversal()
+
+
+def port_log_likelihood(ports: PortMatch | None, tolerance_rad: float) -> float:
+    """The log-likelihood of a visit's exits fitting a junction's ports with their
+    misfit: a Gaussian, sigma ``tolerance_rad`` (0 with nothing compared)."""
+    if ports is None or ports.residual_rad is None:
+        return 0.0
+    return -0.5 * (ports.residual_rad / tolerance_rad) ** 2
+
+
+def _traversal_log_likelihood(
+    topomap: TopoMap, branch: Branch, ports: tuple[float, ...] | None, odometer_m: float | None
+) -> float:
+    """Visit ``branch`` on ``topomap`` and return the log-likelihood of the traversal
+    that led there: a conflict, a pipe driven again at another length."""
+    before = len(topomap.edges())
+    previous = topomap.previous
+    departure = None if previous is None else topomap.visit_records[-1].departure_port
+    topomap.visit(branch.node, ports, branch.arrival_port, odometer_m)
+    record = topomap.visit_records[-1]
+    if record.conflict is not None:
+        return math.log(CONFLICT_LIKELIHOOD)
+    if previous is None or len(topomap.edges()) != before:
+        return 0.0
+    if departure is not None:
+        edge = topomap.edge_at(previous, departure)
+    else:  # a map without ports: the edge joins the two junctions
+        pair = {previous, branch.node}
+        edge = next((e for e in topomap.edges() if {e.u, e.v} == pair and e.u_port is None), None)
+    driven = topomap.last_length_m
+    if edge is None or edge.length_m is None or driven is None:
+        return 0.0
+    sigma = LENGTH_SIGMA_M + LENGTH_SIGMA_PER_M * edge.length_m
+    return -0.5 * ((driven - edge.length_m) / sigma) ** 2

@@ -1,0 +1,59 @@
+"""Dead reckoning as evidence of which known junction a visit is.
+
+The robot's position by its own odometry (in the start's frame) drifts with the
+distance driven, but not by metres: a known junction far from where the robot is
+cannot be the visit's (:meth:`DeadReckoning.near`, ``LocalizerConfig.odometry_check``),
+and among junctions that look alike, the nearer one is the likelier
+(:meth:`DeadReckoning.log_likelihood`, :mod:`localizer.hypotheses`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from pipemap.localizer.config import LocalizerConfig
+
+__all__ = ["DeadReckoning"]
+
+
+class DeadReckoning:
+    """Each junction's position at its first visit, and the current visit's."""
+
+    def __init__(self, config: LocalizerConfig) -> None:
+        self.config = config
+        #: Dead reckoning at each junction's first visit (``None``: not given).
+        self.positions: dict[int, tuple[float, float] | None] = {}
+        self.here: tuple[float, float] | None = None
+        self.tolerance_m = 0.0
+
+    def at(self, position_m: tuple[float, float] | None, odometer_m: float | None) -> None:
+        """The current visit is at ``position_m`` after ``odometer_m`` driven (either
+        ``None``: not given). The tolerance is ``odometry_radius_m`` plus
+        ``odometry_drift_per_m`` of the distance driven, at most ``odometry_limit_m``."""
+        self.here = None if position_m is None else (float(position_m[0]), float(position_m[1]))
+        c = self.config
+        driven = 0.0 if odometer_m is None else odometer_m
+        self.tolerance_m = min(
+            c.odometry_radius_m + c.odometry_drift_per_m * driven, c.odometry_limit_m
+        )
+
+    def remember(self, node: int) -> None:
+        """The current visit is new junction ``node``'s first."""
+        self.positions[node] = self.here
+
+    def near(self, node: int) -> bool:
+        """Whether the robot may be at known junction ``node`` by its dead reckoning
+        (it may when either position is unknown or the check is off)."""
+        there = self.positions.get(node)
+        if not self.config.odometry_check or self.here is None or there is None:
+            return True
+        return math.dist(self.here, there) <= self.tolerance_m
+
+    def log_likelihood(self, node: int) -> float:
+        """The log-likelihood of the robot's being at known junction ``node``: a
+        Gaussian in the distance between the two positions, sigma half the
+        tolerance (0 when either position is unknown)."""
+        there = self.positions.get(node)
+        if self.here is None or there is None or self.tolerance_m <= 0.0:
+            return 0.0
+        return -0.5 * (math.dist(self.here, there) / (0.5 * self.tolerance_m)) ** 2
