@@ -193,9 +193,7 @@ def run_case(
         wall,
         report.counts()["false_merge"],
         report.counts()["false_new"],
-        probes_made=sum(
-            p.similarity is not None for v in result.visits for p in v.decision.probes
-        ),
+        probes_made=sum(p.similarity is not None for v in result.visits for p in v.decision.probes),
         probes_asked=sum(len(v.decision.probes) for v in result.visits),
         deferred=len(report.deferred_visits),
         still_open=len(report.open_visits),
@@ -270,6 +268,7 @@ def main() -> int:
     )
     parser.add_argument("--tilt-deg", type=float, default=0.0, help="record --tilt-deg (0)")
     parser.add_argument("--obstacles", type=int, default=0, help="record --obstacles (0)")
+    parser.add_argument(
         "--hypotheses", type=int, default=8, help="the localizer's live maps at most (8)"
     )
     args = parser.parse_args()

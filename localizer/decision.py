@@ -27,6 +27,7 @@ __all__ = [
     "ProbeRequest",
     "ProbeSource",
     "best_candidate",
+    "alike_candidates",
     "check_order",
     "probe_plan",
 ]
@@ -205,6 +206,35 @@ def check_order(
 
     merged = heapq.merge(sorted(screened, key=rank), unscreened, key=rank)
     return list(itertools.islice(filter(allowed, merged), count)), screened
+
+
+def alike_candidates(
+    node: int,
+    expected: int | None,
+    allowed: Callable[[int], bool],
+    matches: list[SetMatch],
+    screened: list[int],
+    margin: float,
+) -> tuple[int, ...]:
+    """The other allowed candidates as good as ``node`` by all but its fit: as
+    refined, within ``margin`` of its similarity; none when the map expected it.
+    ``screened`` are the junctions not :data:`UNSCREENED` (the others are looked at
+    only when that score is within the margin)."""
+    if node == expected:
+        return ()
+    sim = matches[node].similarity
+    near = UNSCREENED.refined == matches[node].refined and (
+        abs(UNSCREENED.similarity - sim) <= margin
+    )
+    pool = range(len(matches)) if near else screened
+    return tuple(
+        j
+        for j in pool
+        if j != node
+        and matches[j].refined == matches[node].refined
+        and abs(matches[j].similarity - sim) <= margin
+        and allowed(j)
+    )
 
 
 def probe_plan(estimated_rotation_rad: float, distance_m: float) -> tuple[ProbeRequest, ...]:

@@ -35,7 +35,6 @@ import math
 from dataclasses import dataclass, field
 
 from pipemap.localizer.ports import PortMatch
-from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
 
 __all__ = [

@@ -35,31 +35,22 @@ from pipemap.localizer.decision import (
     ProbeOutcome,
     ProbeRequest,
     ProbeSource,
+    alike_candidates,
     best_candidate,
     check_order,
     probe_plan,
 )
-from pipemap.localizer.fastmatch import UNSCREENED, FastMatcher, PreparedSet
+from pipemap.localizer.fastmatch import FastMatcher, PreparedSet
 from pipemap.localizer.hypotheses import Branch, Hypotheses, port_log_likelihood
 from pipemap.localizer.illumination import normalised
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.odometry import DeadReckoning
 from pipemap.localizer.phases import PhaseClock
-from pipemap.localizer.ports import (
-    PortMatch,
-    clockwise_ports,
-    match_ports,
-    port_rotations,
-)
+from pipemap.localizer.ports import PortMatch, clockwise_ports, match_ports, port_rotations
 from pipemap.localizer.ports import nearest_exit as _nearest_exit
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
-from pipemap.localizer.twoview import (
-    StoredFeatures,
-    SweepFeatures,
-    TwoViewFit,
-    stored_features,
-)
+from pipemap.localizer.twoview import StoredFeatures, SweepFeatures, TwoViewFit, stored_features
 from pipemap.localizer.verify import candidate_fit
 
 __all__ = [
@@ -491,33 +482,12 @@ class Localizer:
                 if ports is not None and not ports.agrees and self.config.port_check:
                     rejected.append((i, ports.reason))
                     continue
-                return i, fit, ports, self._alike(i, expected, allowed, matches, screened)
+                return (
+                    i,
+                    fit,
+                    ports,
+                    alike_candidates(
+                        i, expected, allowed, matches, screened, self.config.alike_margin
+                    ),
+                )
         return None
-
-    def _alike(
-        self,
-        node: int,
-        expected: int | None,
-        allowed: Callable[[int], bool],
-        matches: list[SetMatch],
-        screened: list[int],
-    ) -> tuple[int, ...]:
-        """The other allowed candidates as good as ``node`` by all but its fit: as
-        refined, within ``alike_margin`` of its similarity; none when the map expected
-        it. ``screened`` are the junctions not :data:`UNSCREENED` (the others are
-        looked at only when that score is within the margin)."""
-        if node == expected:
-            return ()
-        sim = matches[node].similarity
-        near = UNSCREENED.refined == matches[node].refined and (
-            abs(UNSCREENED.similarity - sim) <= self.config.alike_margin
-        )
-        pool = range(len(matches)) if near else screened
-        return tuple(
-            j
-            for j in pool
-            if j != node
-            and matches[j].refined == matches[node].refined
-            and abs(matches[j].similarity - sim) <= self.config.alike_margin
-            and allowed(j)
-        )
