@@ -49,7 +49,7 @@ def test_the_candidates_are_the_best_allowed_of_every_known_junction(
         asked.append(i)
         return i in near
 
-    monkeypatch.setattr(localizer, "_near", is_near)
+    monkeypatch.setattr(localizer._odometry, "near", is_near)
     # No ports to compare (the map of this test has no nodes).
     monkeypatch.setattr(localizer, "_allowed_rotations", lambda *args: None)
     monkeypatch.setattr(localizer, "_fit", lambda i, *args: fitted.append(i))
