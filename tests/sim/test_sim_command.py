@@ -199,7 +199,15 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
     faults = []
 
     def one_sweep_run(  # type: ignore[no-untyped-def]
-        world, camera, seed, start=None, config=None, sink=None, policy=None, motor_faults=()
+        world,
+        camera,
+        seed,
+        start=None,
+        config=None,
+        sink=None,
+        policy=None,
+        motor_faults=(),
+        on_explorer=None,
     ):
         policies.append(policy)
         faults.append(motor_faults)
