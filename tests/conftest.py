@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import math
 import os
+import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -64,3 +68,57 @@ def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     done = record(path)
     assert done.returncode == 0, done.stderr
     return path
+
+
+# ------------------------------------------------------------ parallel runs (xdist)
+#: Test modules that start Ray: a local cluster in the test process, a batch or an
+#: experiment as a subprocess, or a head with ``ray start``. Under ``pytest -n N`` no
+#: two of them run at once: two local clusters started together on one machine race
+#: for Ray's session folder in /tmp/ray, and each holds an object store of its own.
+#: (xdist's ``xdist_group`` cannot say this with pytest 9.2: xdist 3.8 marks a group
+#: by rewriting the test's node id, which pytest 9.2 no longer reads back; see
+#: pytest-dev/pytest-xdist#1386.)
+RAY_MODULES = frozenset(
+    {
+        "tests/batch/test_batch_ray.py",
+        "tests/batch/test_engine.py",
+        "tests/test_experiment.py",
+        "tests/test_packaging.py",
+    }
+)
+
+
+def ray_lock(module: str) -> Path | None:
+    """The file whose lock a worker of this ``pytest -n`` run holds while it runs
+    ``module`` (a path from the checkout's root), if the module is one of
+    :data:`RAY_MODULES`; None for other modules and in a serial run."""
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if not os.environ.get("PYTEST_XDIST_WORKER") or not run or module not in RAY_MODULES:
+        return None
+    return Path(tempfile.gettempdir()) / f"pipemap-tests-ray-{run}.lock"
+
+
+@contextlib.contextmanager
+def held_lock(path: Path) -> Iterator[None]:
+    """An exclusive lock on ``path`` (created if need be), waited for, held while the
+    block runs; the system frees it if the process dies."""
+    with path.open("a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(f, fcntl.LOCK_UN)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _ray_alone(request: pytest.FixtureRequest) -> Iterator[None]:
+    """In a parallel run, a module of :data:`RAY_MODULES` runs while no other does.
+    Autouse and module-scoped, it is set up before the module's own fixtures (the
+    ones that start Ray) and torn down after them. Run with ``--dist loadscope``, a
+    module's tests all go to one worker, so its fixtures start Ray once."""
+    lock = ray_lock(request.path.relative_to(REPO).as_posix())
+    if lock is None:
+        yield
+        return
+    with held_lock(lock):
+        yield
