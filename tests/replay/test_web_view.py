@@ -94,15 +94,18 @@ def served(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], str, Path]]:
         stderr=subprocess.DEVNULL,
         text=True,
     )
-    assert server.stdout is not None
-    first = server.stdout.readline()
-    assert first.startswith(f"viewed {LOG}: 13 sweeps, 78 images, 13 visits, 7 junctions")
-    line = server.stdout.readline()
-    assert line.startswith(f"serving the view at http://127.0.0.1:{port}/?url="), line
-    yield server, line.split()[4], saved
-    if server.poll() is None:
-        server.send_signal(signal.SIGINT)
-        server.wait(timeout=30)
+    try:
+        assert server.stdout is not None
+        first = server.stdout.readline()
+        # 13 visits' sweeps and 5 probe sweeps of the robot's active vision.
+        assert first.startswith(f"viewed {LOG}: 18 sweeps, 108 images, 13 visits, 7 junctions")
+        line = server.stdout.readline()
+        assert line.startswith(f"serving the view at http://127.0.0.1:{port}/?url="), line
+        yield server, line.split()[4], saved
+    finally:  # the server and its rerun child stop even when a check above failed
+        if server.poll() is None:
+            server.send_signal(signal.SIGINT)
+            server.wait(timeout=30)
 
 
 def test_the_browser_draws_the_images_and_the_map(
