@@ -95,14 +95,25 @@ def test_a_stop_signal_mid_save_leaves_no_partial_file_and_one_line(
     sig: signal.Signals, status: int, tmp_path: Path
 ) -> None:
     target = tmp_path / "view.rrd"
-    process = subprocess.Popen(
-        [sys.executable, "-m", "pipemap", "view", str(LOG), "--save", str(target)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    _wait_for(lambda: any(tmp_path.glob(".view.rrd*")), process, "temporary .rrd file")
+    for _attempt in range(3):
+        process = subprocess.Popen(
+            [sys.executable, "-m", "pipemap", "view", str(LOG), "--save", str(target)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        _wait_for(lambda: any(tmp_path.glob(".view.rrd*")), process, "temporary .rrd file")
+        # Frozen while the temporary file exists, so the signal lands mid-save; on a
+        # quick machine the save may have ended before the freeze: then again.
+        process.send_signal(signal.SIGSTOP)
+        if process.poll() is None:
+            break
+        process.communicate()
+        target.unlink(missing_ok=True)
+    else:
+        pytest.fail("the save always ended before the signal could be sent")
     process.send_signal(sig)
+    process.send_signal(signal.SIGCONT)
     out, err = process.communicate(timeout=120)
     assert process.returncode == status, err
     assert err.splitlines() == [f"pipemap: interrupted ({sig.name})"]
