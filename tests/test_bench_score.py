@@ -7,6 +7,8 @@ import re
 import subprocess
 import sys
 
+import pytest
+
 from tests.conftest import REPO
 
 
@@ -32,7 +34,11 @@ def test_it_compares_the_two_rules_and_says_where_the_time_of_each_goes() -> Non
     assert phases["defaults"]["keypoints"] > 0.0 == phases["--no-two-view"]["keypoints"]
 
 
-def test_it_compares_the_defaults_with_the_odometry_check_off() -> None:
+@pytest.mark.parametrize(
+    ("against", "flags"),
+    [("no-odometry-check", "--no-odometry-check"), ("one-hypothesis", "--hypotheses 1")],
+)
+def test_it_compares_the_defaults_with_another_rule(against: str, flags: str) -> None:
     log = REPO / "recordings" / "random8_loops.mcap"
     done = subprocess.run(
         [
@@ -42,33 +48,13 @@ def test_it_compares_the_defaults_with_the_odometry_check_off() -> None:
             "--repeat",
             "1",
             "--against",
-            "no-odometry-check",
+            against,
         ],
         capture_output=True,
         text=True,
         check=False,
     )
     assert done.returncode == 0, done.stderr
-    assert re.search(r"defaults / --no-odometry-check \(CPU means\): \d+\.\d\dx", done.stdout)
-    assert re.search(r"^--no-odometry-check +11 decisions", done.stdout, re.MULTILINE)
-
-
-def test_it_compares_the_defaults_with_one_hypothesis() -> None:
-    log = REPO / "recordings" / "random8_loops.mcap"
-    done = subprocess.run(
-        [
-            sys.executable,
-            str(REPO / "benchmarks" / "bench_score.py"),
-            str(log),
-            "--repeat",
-            "1",
-            "--against",
-            "one-hypothesis",
-        ],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    assert done.returncode == 0, done.stderr
-    assert re.search(r"defaults / --hypotheses 1 \(CPU means\): \d+\.\d\dx", done.stdout)
-    assert re.search(r"^--hypotheses 1 +11 decisions", done.stdout, re.MULTILINE)
+    label = re.escape(flags)
+    assert re.search(rf"defaults / {label} \(CPU means\): \d+\.\d\dx", done.stdout)
+    assert re.search(rf"^{label} +11 decisions", done.stdout, re.MULTILINE)
