@@ -75,6 +75,7 @@ if TYPE_CHECKING:
     from pipemap.replay.info import log_info
     from pipemap.routes import load_map, route, route_document
     from pipemap.sim.episode import Condition
+    from pipemap.viewing import Viewed, view
 
 #: Names of this module loaded on first use (PEP 562): the image-set commands never
 #: read a log (loading mcap, protobuf and the replay cost ``pipemap match`` 0.18 s of
@@ -110,6 +111,8 @@ _LAZY = {
     "export_tum": "pipemap.interchange",
     "save_results_log": "pipemap.interchange",
     "export_geojson": "pipemap.interchange",
+    "view": "pipemap.viewing",
+    "Viewed": "pipemap.viewing",
 }
 
 
@@ -166,6 +169,8 @@ __all__ = [
     "log_info",
     "route",
     "route_document",
+    "view",
+    "Viewed",
 ]
 
 

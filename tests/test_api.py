@@ -151,3 +151,20 @@ def test_the_api_exports_every_type_its_functions_take_and_give() -> None:
         assert name in api.__all__, f"pipemap.api takes or gives {name} but does not export it"
     assert api.RecordSettings is RecordSettings
     assert api.RecordSettings(network="paper", explore=api.Explore.MAP).explore is api.Explore.MAP
+
+
+def test_view_saves_the_replayed_log_as_a_rerun_recording(tmp_path: Path) -> None:
+    target = tmp_path / "run.rrd"
+    viewed = api.view(LOG, PAPER, save=target)
+    assert target.stat().st_size > 0
+    assert not viewed.contents.damage and not viewed.contents.truncated
+    # The config reaches the replay: on this lamp-lit log the paper's rule merges
+    # junctions that pipemap's defaults keep apart.
+    paper = api.replay(LOG, PAPER).document()
+    assert viewed.result.document() == paper != api.replay(LOG).document()
+
+
+def test_view_refuses_a_save_that_is_not_an_rrd_before_reading_the_log(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match=r"\.rrd"):
+        api.view(tmp_path / "missing.mcap", save=tmp_path / "run.png")
+    assert list(tmp_path.iterdir()) == []

@@ -90,6 +90,15 @@ ALLOWED_INTERNAL: dict[str, tuple[str, ...]] = {
         "pipemap.sweep_folders",
         "pipemap.routes",
         "pipemap.interchange",
+        "pipemap.viewing",
+        "pipemap.errors",
+    ),
+    # A log and its replay in rerun (``pipemap view``), exported by the API.
+    "pipemap.viewing": (
+        "pipemap.api",
+        "pipemap.replay",
+        "pipemap.recorder",
+        "pipemap.localizer",
         "pipemap.errors",
     ),
     # Other tools' formats in and out (ROS 2 bags, TUM, GeoJSON), exported by the API.

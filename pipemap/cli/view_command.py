@@ -1,46 +1,31 @@
 """``pipemap view``: a log and its replay in the rerun viewer, or in an ``.rrd`` file.
 
-The map and the decisions are the replay's, as ``pipemap replay`` makes them; they
-go to rerun with the log's streams, on the log's simulated time: to a viewer it
-starts (or one already running), or with ``--save`` to a file.
-Every argument is checked before the log is read; an existing file is replaced
-only with ``--force``.
-
-rerun is imported only here (by :mod:`replay.view`), so other commands do not pay
-for it. Its import takes 0.25-0.35 s. Where the system can fork, a child process
-replays the log, on the other core, while this process imports rerun and then
-reads the log's streams and logs them a window at a time; the child's decisions
-come last. Each process reads the file as it goes, so neither holds the log (a
-100-junction run's is 1.4 million messages). The recording is the same either way.
-(Importing rerun in a thread saved nothing: the import holds the GIL.)
+The work is :func:`pipemap.api.view`'s (:mod:`pipemap.viewing`); this module checks
+the arguments before the log is read (an existing file is replaced only with
+``--force``), serves the saved view with ``--web``, and prints what was viewed.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import dataclasses
 import os
-import pickle
-import signal
 import socket
 import sys
 import tempfile
-from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, TextIO
 from urllib.parse import urlsplit
 
 from pipemap.cli.log_parser import WEB_PORT
 from pipemap.cli.outputs import output_file
 from pipemap.cli.replay_commands import localizer_config, progress_printer, report_damage
 from pipemap.errors import InputError, ViewerError
+from pipemap.viewing import RRD_SUFFIX, check_display
 
 if TYPE_CHECKING:
     from pipemap.localizer import LocalizerConfig
-    from pipemap.replay import MessageSource, ReplayResult
+    from pipemap.replay import ReplayResult
     from pipemap.replay.live import LiveSummary, LiveView, LiveViewProcess
-    from pipemap.replay.view import Replayed
 
 __all__ = [
     "check_connect",
@@ -51,28 +36,12 @@ __all__ = [
     "view_recorded",
 ]
 
-#: The file suffix rerun gives its recordings; another one is most likely a slip.
-RRD_SUFFIX = ".rrd"
-_DISPLAY_VARIABLES = ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")
-
 
 def _target(args: argparse.Namespace) -> Path | None:
     target = output_file(args.save, "--save", args.force)
     if target is not None and target.suffix != RRD_SUFFIX:
         raise InputError(f"{target}: a rerun recording is saved as a {RRD_SUFFIX} file")
     return target
-
-
-def _check_display() -> None:
-    """The viewer is a window: on Linux without X11 or Wayland it cannot open (and rerun
-    would wait some 20 s to say so)."""
-    if not sys.platform.startswith("linux"):
-        return
-    if not any(os.environ.get(name) for name in _DISPLAY_VARIABLES):
-        raise ViewerError(
-            "no display for the rerun viewer (DISPLAY and WAYLAND_DISPLAY are unset); "
-            "save the recording with --save and open the .rrd with rerun elsewhere"
-        )
 
 
 def check_view_target(log: Path, save: bool, force: bool, connect: str | None) -> Path | None:
@@ -85,7 +54,7 @@ def check_view_target(log: Path, save: bool, force: bool, connect: str | None) -
         check_connect(connect)
         return None
     if not save:
-        _check_display()
+        check_display()
         return None
     return output_file(str(log.with_suffix(RRD_SUFFIX)), "--save", force)
 
@@ -152,170 +121,26 @@ def _summary(name: str, result: ReplayResult) -> str:
     )
 
 
-def _show(
-    source: MessageSource, result: Replayed, target: Path | None, max_rate_hz: float | None
-) -> None:
-    from pipemap.replay.view import save_view, spawn_view
-    from pipemap.replay.view_topics import DEFAULT_MAX_RATE_HZ
-
-    rate = DEFAULT_MAX_RATE_HZ if max_rate_hz is None else max_rate_hz
-    if target is None:
-        spawn_view(source, result, rate)
-    else:
-        save_view(source, result, target, rate)
-
-
-class _Child:
-    """A forked process that replays the log and sends back the result.
-
-    The pipe carries the replay's result without the image sets (or its error).
-    Meanwhile the parent imports rerun and reads and logs the log's streams itself:
-    each process reads the file as it goes, and neither holds the log.
-    """
-
-    def __init__(
-        self,
-        open_log: Callable[[], MessageSource],
-        config: Callable[[], LocalizerConfig],
-        err: TextIO,
-    ) -> None:
-        err.flush()
-        read_end, write_end = os.pipe()
-        self._pid = os.fork()
-        if self._pid == 0:
-            os.close(read_end)
-            self._run(open_log, config, err, write_end)  # never returns
-        os.close(write_end)
-        self._pipe = os.fdopen(read_end, "rb")
-        self._done = False
-        self._answered = False
-        self._result: ReplayResult | None = None
-
-    @staticmethod
-    def _run(
-        open_log: Callable[[], MessageSource],
-        config: Callable[[], LocalizerConfig],
-        err: TextIO,
-        write_end: int,
-    ) -> None:
-        status = 1
-        try:
-            with os.fdopen(write_end, "wb") as pipe:
-                try:
-                    from pipemap import api
-
-                    done = api.replay(
-                        open_log(), config(), progress_printer(err), keep_prepared=False
-                    )
-                    # The view needs the decisions, not the visits' image sets (not
-                    # kept) or the localizer's database of junctions.
-                    payload: Any = dataclasses.replace(done, localizer=None)
-                    status = 0
-                except BaseException as exc:  # noqa: BLE001  (the parent reports it)
-                    payload = exc
-                pickle.dump(payload, pipe, protocol=_PROTOCOL)
-            err.flush()
-        finally:
-            os._exit(status)
-
-    def result(self) -> ReplayResult:
-        """The replay's result, once the child has it."""
-        if self._result is None:
-            try:
-                payload = pickle.load(self._pipe)
-                self._answered = True
-            except (EOFError, pickle.UnpicklingError):
-                self._answered = True  # the child ended already
-                self.close()
-                raise ViewerError("the replay process ended without a result") from None
-            self.close()
-            if isinstance(payload, BaseException):
-                raise payload
-            self._result = payload
-        return self._result
-
-    def close(self) -> None:
-        """Wait for the child to end (idempotent); a child whose result was not taken
-        (the view stopped: a signal, an error) is ended first, not waited for."""
-        if not self._done:
-            self._done = True
-            self._pipe.close()
-            if not self._answered:
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(self._pid, signal.SIGKILL)
-            os.waitpid(self._pid, 0)
-
-
-#: The pickle protocol that carries the replay's result.
-_PROTOCOL = pickle.HIGHEST_PROTOCOL
-
-
-def _can_fork() -> bool:
-    """Whether the replay can run in a forked child (else one process does it all)."""
-    return hasattr(os, "fork")
-
-
-def _quiet_rerun() -> None:
-    """Turn rerun's own log lines off for a save, unless ``RUST_LOG`` says otherwise.
-
-    rerun's file writer logs its failures itself (``ERROR ... Failed to write log
-    stream``, ``File-writer thread shut down prematurely``) on standard error, besides
-    the error it raises, which is pipemap's one line. rerun reads ``RUST_LOG`` once, as
-    it is imported, so this comes before the import."""
-    os.environ.setdefault("RUST_LOG", "off")
-
-
 def _view(
     log: Path,
-    config: Callable[[], LocalizerConfig],
+    config: LocalizerConfig,
     target: Path | None,
     out: TextIO,
     err: TextIO,
     where: str | None = None,
     max_rate_hz: float | None = None,
 ) -> None:
-    """Replay the log beside the view's own work, then show or save the view
-    (``where``, if given, says where the view went in the last line; the high-rate
-    streams at most ``max_rate_hz`` messages a second; ``None``: the default of
-    :mod:`replay.view_topics`).
+    """View ``log`` through :func:`pipemap.api.view` and say where it went (``where``,
+    if given, in the last line): the log's damage and the replay's notes on ``err``."""
+    from pipemap import api
 
-    The log is opened (and refused if it is not one) before any work. Where the
-    system can fork, a child replays it while this process imports rerun and logs
-    the streams as it reads them, and the decisions last; elsewhere one process
-    does it all, in that order. Each reads the file as it goes.
-    """
-    from pipemap.replay import REPLAY_TOPICS, StreamSource
-
-    if target is not None:
-        _quiet_rerun()
-    viewed = StreamSource(log)  # a missing, empty or foreign file: refused here
-
-    def open_log() -> MessageSource:
-        return StreamSource(log, REPLAY_TOPICS)
-
-    if not _can_fork():
-        from pipemap import api
-
-        done = api.replay(open_log(), config(), progress_printer(err), keep_prepared=False)
-        _show(viewed, done, target, max_rate_hz)
-    else:
-        child = _Child(open_log, config, err)
-        try:
-            # Imported here while the child replays, not after.
-            import rerun  # noqa: F401
-
-            from pipemap.replay import view  # noqa: F401
-
-            _show(viewed, child.result, target, max_rate_hz)
-            done = child.result()
-        finally:
-            child.close()
+    viewed = api.view(log, config, target, max_rate_hz, progress_printer(err))
     report_damage(str(log), viewed.contents, err)
-    for warning in done.warnings:
+    for warning in viewed.result.warnings:
         err.write(f"pipemap: note: {warning}\n")
     if where is None:
         where = "sent to the rerun viewer" if target is None else f"written to {target}"
-    out.write(f"viewed {_summary(str(log), done)}, {where}\n")
+    out.write(f"viewed {_summary(str(log), viewed.result)}, {where}\n")
 
 
 def view_recorded(
@@ -324,7 +149,7 @@ def view_recorded(
     """Right after ``pipemap record --view``: replay the new log and show or save it."""
     from pipemap.localizer import LocalizerConfig
 
-    _view(log, lambda: LocalizerConfig(threshold=threshold), target, out, err)
+    _view(log, LocalizerConfig(threshold=threshold), target, out, err)
 
 
 def _serve_web(args: argparse.Namespace, target: Path | None, out: TextIO, err: TextIO) -> int:
@@ -335,7 +160,7 @@ def _serve_web(args: argparse.Namespace, target: Path | None, out: TextIO, err: 
     with tempfile.TemporaryDirectory(prefix="pipemap-web-") as folder:
         rrd = target if target is not None else Path(folder) / "view.rrd"
         where = "for the web viewer" if target is None else f"written to {target}"
-        _view(Path(args.log), lambda: localizer_config(args), rrd, out, err, where, args.max_rate)
+        _view(Path(args.log), localizer_config(args), rrd, out, err, where, args.max_rate)
         port = WEB_PORT if args.port is None else args.port
         with serve_web(rrd, port, Path(folder) / "rerun.log") as server:
             out.write(f"serving the view at {server.url} (Ctrl-C stops)\n")
@@ -357,6 +182,6 @@ def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
     if args.port is not None:
         raise InputError("--port: the web viewer's port, so it needs --web")
     if target is None:
-        _check_display()
-    _view(Path(args.log), lambda: localizer_config(args), target, out, err, None, args.max_rate)
+        check_display()
+    _view(Path(args.log), localizer_config(args), target, out, err, None, args.max_rate)
     return 0

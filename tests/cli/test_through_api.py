@@ -82,11 +82,24 @@ def test_score_calls_api_score_for_each_log(monkeypatch: pytest.MonkeyPatch, log
     assert config.threshold == 0.42
 
 
+def test_view_calls_api_view_with_the_parsed_settings(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    calls = _spy(monkeypatch, "view")
+    target = tmp_path / "v.rrd"
+    argv = ["view", str(STORED), "--threshold", "0.3", "--max-rate", "4", "--save", str(target)]
+    with pytest.raises(Called):
+        main(argv)
+    (path, config, save, max_rate, *_), _ = calls[0]
+    assert (Path(path), Path(save), max_rate) == (STORED, target, 4.0)
+    assert config.threshold == 0.3
+
+
 def test_view_replays_through_api_replay(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from pipemap.cli import view_command
+    from pipemap import viewing
 
     # In one process (the forked child would report the spy's exception as its own).
-    monkeypatch.setattr(view_command, "_can_fork", lambda: False)
+    monkeypatch.setattr(viewing, "_can_fork", lambda: False)
     calls = _spy(monkeypatch, "replay")
     with pytest.raises(Called):
         main(["view", str(STORED), "--threshold", "0.3", "--save", str(tmp_path / "v.rrd")])

@@ -20,7 +20,8 @@ from typing import Any
 
 import pytest
 
-from pipemap.cli import main, view_command
+from pipemap import viewing
+from pipemap.cli import main
 from pipemap.recorder import Topic, read_log
 from pipemap.recorder.schemas import CompressedImage, Ranges
 from pipemap.replay import FileSource, StreamSource, replay
@@ -214,7 +215,7 @@ def test_the_command_without_a_child_process_saves_the_same(
     capfd: pytest.CaptureFixture[str],
 ) -> None:
     # Where the system cannot fork, one process does it all.
-    monkeypatch.setattr(view_command, "_can_fork", lambda: False)
+    monkeypatch.setattr(viewing, "_can_fork", lambda: False)
     alone = tmp_path / "alone.rrd"
     status, out, err = run(["view", str(recorded_run), "--save", str(alone)], capfd)
     assert status == 0, err
@@ -418,7 +419,7 @@ def test_the_command_never_reads_the_log_whole(
         raise AssertionError("the log was read whole")
 
     monkeypatch.setattr(source_module, "read_log", whole)
-    monkeypatch.setattr(view_command, "_can_fork", lambda: False)
+    monkeypatch.setattr(viewing, "_can_fork", lambda: False)
     out = tmp_path / "streamed.rrd"
     status, _, err = run(["view", str(recorded_run), "--save", str(out)], capfd)
     assert status == 0, err
