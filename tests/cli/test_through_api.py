@@ -153,3 +153,26 @@ def test_a_batch_run_records_and_scores_through_the_api(monkeypatch: pytest.Monk
     assert recorded == [spec.points[0].record_settings()]
     (_, config), _ = scores[0]
     assert config.threshold == 0.4
+
+
+def test_batch_plans_and_runs_through_pipemap_batch(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``pipemap batch`` is :func:`pipemap.batch.run_batch` on the plan of
+    :func:`pipemap.batch.plan_batch`, with the flags' options, as a script calls them."""
+    import pipemap.batch
+
+    plans: list[Any] = []
+
+    def run_batch(plan: Any, progress: Any = None) -> Any:
+        plans.append(plan)
+        raise Called("run_batch")
+
+    monkeypatch.setattr(pipemap.batch, "run_batch", run_batch)
+    spec = ROOT / "experiments" / "small.toml"
+    with pytest.raises(Called):
+        main(["batch", str(spec), "--out", str(tmp_path / "b"), "--workers", "1", "--keep-logs"])
+    (plan,) = plans
+    assert plan.out == tmp_path / "b"
+    assert (plan.options.workers, plan.options.keep_logs) == (1, True)
+    assert plan.spec == pipemap.batch.load_spec(spec)
