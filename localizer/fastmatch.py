@@ -40,6 +40,7 @@ from dataclasses import replace
 import numpy as np
 
 from pipemap.errors import LocalizerError
+from pipemap.localizer import transforms
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.index import INDEX_ABOVE, SHORTLIST, DescriptorIndex, descriptor
 from pipemap.localizer.prepared import (
@@ -49,7 +50,7 @@ from pipemap.localizer.prepared import (
     config_key,
     prepare,
 )
-from pipemap.localizer.similarity import SetMatch, _fft, best_offset, wrap_angle_rad
+from pipemap.localizer.similarity import SetMatch, best_offset, wrap_angle_rad
 from pipemap.localizer.spectra import (
     FineSpectra,
     _fft_length,
@@ -88,9 +89,9 @@ class FastMatcher:
         self._index = DescriptorIndex()
         self.index_above = INDEX_ABOVE
         self.shortlist = SHORTLIST
-        # scipy.fft is imported here, not at the first sweep: a robot's first decision
-        # would otherwise wait 0.2-0.3 s for it (the import's cost, on this machine).
-        _fft()
+        # The transforms are loaded here, not at the first sweep (without scipy's
+        # pocketfft, scipy.fft's import would make a robot's first decision wait 0.2 s).
+        transforms.backend()
 
     def __len__(self) -> int:
         return len(self._sets)
@@ -215,7 +216,7 @@ class FastMatcher:
             spectrum = np.matmul(
                 query.template_rows[:, :, r0:r1], image_rows[:, r0 + dy : r1 + dy, :]
             )  # (F, N, N*M): every query image against every known image
-            corr = _fft().irfft(spectrum.transpose(1, 2, 0), n=length, axis=2)[:, :, lags]
+            corr = transforms.irfft(spectrum.transpose(1, 2, 0), n=length, axis=2)[:, :, lags]
             ncc = corr * inv_window_norm[d][None, :, :]
             ncc *= query.inv_template_norm[:, None, None].astype(np.float32)
             col = np.argmax(ncc, axis=2)  # whole pixels: the screen ranks, it does not measure

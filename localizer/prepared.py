@@ -16,8 +16,9 @@ import cv2
 import numpy as np
 
 from pipemap.errors import LocalizerError
+from pipemap.localizer import transforms
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.similarity import _fft, paper_scaled
+from pipemap.localizer.similarity import paper_scaled
 from pipemap.localizer.spectra import (
     FineSpectra,
     _fft_length,
@@ -327,7 +328,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     small = _area_downsampled(cropped, config.coarse_row_downsample, config.coarse_downsample)
     n, rows, wd = small.shape
     zero_mean = small - small.mean(axis=(1, 2), keepdims=True)
-    spectra = _fft().rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
+    spectra = transforms.rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
     dy_max = min(config.coarse_dy_px // config.coarse_row_downsample, rows - 1)
     dys = np.arange(-dy_max, dy_max + 1)
     inv_norms = _inverse(_window_norms(zero_mean, dys, _same_shifts(wd))).transpose(1, 0, 2)
