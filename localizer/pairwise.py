@@ -62,7 +62,7 @@ def _searched(prepared: PreparedSet) -> PreparedSet:
 
 def _prepared_for(item: ImageSet | PreparedSet, config: FastConfig) -> PreparedSet:
     if isinstance(item, ImageSet):
-        return for_pairs(prepare(item, config))
+        return for_pairs(prepare(item, config, refinement=False))
     # Its shape key: the images' shape, field of view and kept fraction, then settings.
     if item.shape_key[5:] != config_key(config):
         raise LocalizerError("a set prepared with other matcher settings than the pairs'")

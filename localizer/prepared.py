@@ -314,8 +314,13 @@ def config_key(config: FastConfig) -> tuple[float, ...]:
     )
 
 
-def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
-    """Precompute everything the fast path needs of one image set."""
+def prepare(image_set: ImageSet, config: FastConfig, refinement: bool = True) -> PreparedSet:
+    """Precompute everything the fast path needs of one image set.
+
+    Without ``refinement`` the refinement spectra are left out (``fine`` is None, unless
+    the baseline needs them), as :func:`localizer.pairwise.for_pairs` would drop them:
+    whoever refines the set builds them from its compact images.
+    """
     if config.fine_downsample > image_set.width // 2:
         raise LocalizerError(
             f"downsampling by {config.fine_downsample} (--downsample) leaves less than two "
@@ -349,7 +354,11 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
         # Searched only by its own baseline; in a database it is rebuilt from
         # ``fine_images`` (``FastMatcher._refinable``).
-        fine=_fine_spectra(fine_images, image_set.width, searched=config.baseline),
+        fine=(
+            _fine_spectra(fine_images, image_set.width, searched=config.baseline)
+            if refinement or config.baseline
+            else None
+        ),
         fine_images=kept_fine,
         zoomed=tuple(
             _fine_spectra(_fine_scaled(_zoomed(image_set, zoom), config), image_set.width)

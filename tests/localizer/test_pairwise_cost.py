@@ -105,3 +105,21 @@ def test_every_offset_of_every_pair_skips_the_screen_with_the_matchers_numbers(
     # With fewer offsets than images the screen chooses them, as in a decision.
     pairwise_matches(sets, FastConfig(zooms=zooms, refine_offsets=2))
     assert len(screens) == 4
+
+
+def test_sets_prepared_for_pairs_build_their_refinement_spectra_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """prepare(refinement=False) leaves out the spectra for_pairs would drop, so each
+    set's are built once, by whoever refines it, with the same numbers."""
+    from pipemap.localizer import prepared as prepared_module
+
+    images = _sets(4)
+    whole = pairwise_matches([prepare(s, FastConfig()) for s in images])
+    lean = [prepare(s, FastConfig(), refinement=False) for s in images]
+    assert all(p.fine is None for p in lean)
+    assert prepare(images[0], FastConfig(baseline=True), refinement=False).fine is not None
+    built = _counting(monkeypatch, prepared_module, "_fine_spectra")
+    built_later = _counting(monkeypatch, pairwise, "_fine_spectra")
+    assert pairwise_matches(images) == whole
+    assert len(built) == 0 and len(built_later) == 4
