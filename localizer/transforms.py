@@ -54,7 +54,8 @@ def _pocketfft() -> Any:
 def _scipy_fft() -> ModuleType:
     from scipy import fft
 
-    return fft
+    module: ModuleType = fft
+    return module
 
 
 def backend() -> str:
