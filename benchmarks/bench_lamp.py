@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from pipemap.localizer import FastConfig, ImageSet, LocalizerConfig
-from pipemap.localizer.fastmatch import pairwise_matches
 from pipemap.localizer.illumination import normalised
+from pipemap.localizer.pairwise import pairwise_matches
 from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.twoview import fit_two_view, sweep_features
 from pipemap.sim.episode import Condition, Episode, SimConfig

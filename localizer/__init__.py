@@ -23,8 +23,6 @@ if TYPE_CHECKING:
         FastConfig,
         FastMatcher,
         PreparedSet,
-        for_pairs,
-        pairwise_matches,
         prepare,
     )
     from pipemap.localizer.illumination import IlluminationConfig, normalised
@@ -48,6 +46,7 @@ if TYPE_CHECKING:
         dumps_document,
         map_document,
     )
+    from pipemap.localizer.pairwise import for_pairs, pairwise_matches
     from pipemap.localizer.phases import PHASES
     from pipemap.localizer.ports import (
         PORT_TOLERANCE_RAD,
@@ -148,14 +147,14 @@ _EXPORTS = {
     "decision_record": "pipemap.localizer.mapjson",
     "dumps_document": "pipemap.localizer.mapjson",
     "fit_two_view": "pipemap.localizer.twoview",
-    "for_pairs": "pipemap.localizer.fastmatch",
+    "for_pairs": "pipemap.localizer.pairwise",
     "overlapping_images": "pipemap.localizer.twoview",
     "map_document": "pipemap.localizer.mapjson",
     "ncc_same": "pipemap.localizer.similarity",
     "normalised": "pipemap.localizer.illumination",
     "pair_peak": "pipemap.localizer.similarity",
     "paper_scaled": "pipemap.localizer.similarity",
-    "pairwise_matches": "pipemap.localizer.fastmatch",
+    "pairwise_matches": "pipemap.localizer.pairwise",
     "pinhole_rotation_rad": "pipemap.localizer.similarity",
     "prepare": "pipemap.localizer.fastmatch",
     "probe_plan": "pipemap.localizer.decision",

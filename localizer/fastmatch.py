@@ -40,16 +40,16 @@ from dataclasses import replace
 import numpy as np
 
 from pipemap.errors import LocalizerError
+from pipemap.localizer import transforms
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.index import INDEX_ABOVE, SHORTLIST, DescriptorIndex, descriptor
 from pipemap.localizer.prepared import (
     FastConfig,
     PreparedSet,
     _zoomed_peaks,
-    config_key,
     prepare,
 )
-from pipemap.localizer.similarity import SetMatch, _fft, best_offset, wrap_angle_rad
+from pipemap.localizer.similarity import SetMatch, best_offset, wrap_angle_rad
 from pipemap.localizer.spectra import (
     FineSpectra,
     _fft_length,
@@ -63,8 +63,6 @@ __all__ = [
     "FastMatcher",
     "FineSpectra",
     "PreparedSet",
-    "for_pairs",
-    "pairwise_matches",
     "prepare",
 ]
 
@@ -88,9 +86,9 @@ class FastMatcher:
         self._index = DescriptorIndex()
         self.index_above = INDEX_ABOVE
         self.shortlist = SHORTLIST
-        # scipy.fft is imported here, not at the first sweep: a robot's first decision
-        # would otherwise wait 0.2-0.3 s for it (the import's cost, on this machine).
-        _fft()
+        # The transforms are loaded here, not at the first sweep (without scipy's
+        # pocketfft, scipy.fft's import would make a robot's first decision wait 0.2 s).
+        transforms.backend()
 
     def __len__(self) -> int:
         return len(self._sets)
@@ -100,11 +98,8 @@ class FastMatcher:
         return prepare(image_set, self.config)
 
     def _check(self, prepared: PreparedSet) -> None:
-        if self._sets and prepared.shape_key != self._sets[0].shape_key:
-            raise LocalizerError(
-                f"image set {prepared.shape_key[:5]} (images, height, width, fov, kept "
-                f"fraction) does not match the database's {self._sets[0].shape_key[:5]}"
-            )
+        if self._sets:
+            _check_alike(self._sets[0], prepared)
 
     def add(self, prepared: PreparedSet, keep_spectra: bool = False) -> int:
         """Append a prepared set to the database; returns its index.
@@ -215,7 +210,7 @@ class FastMatcher:
             spectrum = np.matmul(
                 query.template_rows[:, :, r0:r1], image_rows[:, r0 + dy : r1 + dy, :]
             )  # (F, N, N*M): every query image against every known image
-            corr = _fft().irfft(spectrum.transpose(1, 2, 0), n=length, axis=2)[:, :, lags]
+            corr = transforms.irfft(spectrum.transpose(1, 2, 0), n=length, axis=2)[:, :, lags]
             ncc = corr * inv_window_norm[d][None, :, :]
             ncc *= query.inv_template_norm[:, None, None].astype(np.float32)
             col = np.argmax(ncc, axis=2)  # whole pixels: the screen ranks, it does not measure
@@ -298,6 +293,14 @@ class FastMatcher:
                 turns[row[i]]
             )
         return matches
+
+
+def _check_alike(known: PreparedSet, prepared: PreparedSet) -> None:
+    if prepared.shape_key != known.shape_key:
+        raise LocalizerError(
+            f"image set {prepared.shape_key[:5]} (images, height, width, fov, kept "
+            f"fraction) does not match the database's {known.shape_key[:5]}"
+        )
 
 
 def _descriptor_of(prepared: PreparedSet) -> np.ndarray:
@@ -393,98 +396,4 @@ def _grown(array: np.ndarray, axis: int) -> np.ndarray:
     index = [slice(None)] * array.ndim
     index[axis] = slice(0, array.shape[axis])
     out[tuple(index)] = array
-    return out
-
-
-def for_pairs(prepared: PreparedSet) -> PreparedSet:
-    """What a set keeps to be compared later, as either side of a pair: all but its
-    refinement spectra, which its compact images give back exactly (at 400 px, 83 KiB
-    of the 350 a prepared set holds, and of the 938 of the 8-bit sweep)."""
-    return prepared if prepared.fine_images is None else replace(prepared, fine=None)
-
-
-def _as_query(prepared: PreparedSet) -> PreparedSet:
-    """``prepared`` with the refinement spectra a query needs (rebuilt if dropped)."""
-    if prepared.fine is not None:
-        return prepared
-    assert prepared.fine_images is not None
-    fine = _fine_spectra(prepared.fine_images.images(), prepared.width_px, searched=False)
-    return replace(prepared, fine=fine)
-
-
-def _searched(prepared: PreparedSet) -> PreparedSet:
-    """``prepared`` with the refinement spectra a known set is searched by.
-
-    :func:`pairwise_matches` builds them once per set and keeps them while the set has
-    pairs to come (at 800 px, 1.6 MiB a set): rebuilt for every pair instead, as a
-    matcher's cache of a few would, they took a quarter of ``pipemap match``'s time.
-    """
-    if prepared.fine is not None and prepared.fine.inv_window_norm is not None:
-        return prepared
-    assert prepared.fine_images is not None
-    fine = _fine_spectra(prepared.fine_images.images(), prepared.width_px)
-    return replace(prepared, fine=fine)
-
-
-def _prepared_for(item: ImageSet | PreparedSet, config: FastConfig) -> PreparedSet:
-    if isinstance(item, ImageSet):
-        return for_pairs(prepare(item, config))
-    # Its shape key: the images' shape, field of view and kept fraction, then settings.
-    if item.shape_key[5:] != config_key(config):
-        raise LocalizerError("a set prepared with other matcher settings than the pairs'")
-    return for_pairs(item)
-
-
-def pairwise_matches(
-    sets: Sequence[ImageSet | PreparedSet],
-    config: FastConfig | None = None,
-    every_offset: bool = False,
-    pairs: list[tuple[int, int]] | None = None,
-) -> dict[tuple[int, int], SetMatch]:
-    """Algorithm 2 for every unordered pair ``(i, j)``, ``i < j``, set i as A, or for
-    the ``pairs`` given only (each ``i < j``).
-
-    Each set is prepared once (only those in a pair; a set given prepared, with
-    ``config``, is used as it is) and every pair is refined, at the offsets a
-    localizer decision would refine (``config.refine_offsets``), or at every cyclic
-    offset with ``every_offset`` (slower; it only matters between different
-    junctions, where all offsets score alike). A pair's match does not depend on
-    which other pairs are asked for. Sets wait for their last pair as
-    :func:`for_pairs` keeps them.
-    """
-    base = config if config is not None else FastConfig()
-    out: dict[tuple[int, int], SetMatch] = {}
-    if not sets:
-        return out
-    if pairs is None:
-        pairs = [(i, j) for i in range(len(sets)) for j in range(i + 1, len(sets))]
-    later_of: dict[int, list[int]] = {}
-    last_use: dict[int, int] = {}  # a set is prepared when first needed, dropped after
-    for i, j in sorted(set(pairs)):
-        if not 0 <= i < j < len(sets):
-            raise LocalizerError(f"pair {(i, j)} is not two sets i < j of {len(sets)}")
-        later_of.setdefault(i, []).append(j)
-        last_use[i] = last_use[j] = i
-    prepared: dict[int, PreparedSet] = {}
-    searched: dict[int, PreparedSet] = {}  # with the spectra a known set is refined by
-    offsets = sets[0].count if every_offset else base.refine_offsets
-    for i, later in later_of.items():
-        everything = replace(
-            base, refine_candidates=len(later), refine_offsets=offsets, runner_up_offsets=offsets
-        )
-        matcher = FastMatcher(everything)
-        for k in (i, *later):
-            if k not in prepared:
-                prepared[k] = _prepared_for(sets[k], base)
-        for j in later:
-            if j not in searched:
-                searched[j] = _searched(prepared[j])
-            matcher.add(searched[j], keep_spectra=True)
-        # A set searched before has the very spectrum a query's would be.
-        query = searched[i] if i in searched else _as_query(prepared[i])
-        for j, match in zip(later, matcher.match(query), strict=True):
-            out[(i, j)] = match
-        for k in [k for k in prepared if last_use[k] == i]:
-            del prepared[k]
-            searched.pop(k, None)
     return out

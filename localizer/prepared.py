@@ -16,8 +16,9 @@ import cv2
 import numpy as np
 
 from pipemap.errors import LocalizerError
+from pipemap.localizer import transforms
 from pipemap.localizer.imageset import ImageSet
-from pipemap.localizer.similarity import _fft, paper_scaled
+from pipemap.localizer.similarity import paper_scaled
 from pipemap.localizer.spectra import (
     FineSpectra,
     _fft_length,
@@ -313,8 +314,13 @@ def config_key(config: FastConfig) -> tuple[float, ...]:
     )
 
 
-def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
-    """Precompute everything the fast path needs of one image set."""
+def prepare(image_set: ImageSet, config: FastConfig, refinement: bool = True) -> PreparedSet:
+    """Precompute everything the fast path needs of one image set.
+
+    Without ``refinement`` the refinement spectra are left out (``fine`` is None, unless
+    the baseline needs them), as :func:`localizer.pairwise.for_pairs` would drop them:
+    whoever refines the set builds them from its compact images.
+    """
     if config.fine_downsample > image_set.width // 2:
         raise LocalizerError(
             f"downsampling by {config.fine_downsample} (--downsample) leaves less than two "
@@ -327,7 +333,7 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
     small = _area_downsampled(cropped, config.coarse_row_downsample, config.coarse_downsample)
     n, rows, wd = small.shape
     zero_mean = small - small.mean(axis=(1, 2), keepdims=True)
-    spectra = _fft().rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
+    spectra = transforms.rfft(zero_mean.astype(np.float32), n=_fft_length(wd), axis=2)  # (N, R, F)
     dy_max = min(config.coarse_dy_px // config.coarse_row_downsample, rows - 1)
     dys = np.arange(-dy_max, dy_max + 1)
     inv_norms = _inverse(_window_norms(zero_mean, dys, _same_shifts(wd))).transpose(1, 0, 2)
@@ -348,7 +354,11 @@ def prepare(image_set: ImageSet, config: FastConfig) -> PreparedSet:
         inv_window_norm=np.ascontiguousarray(inv_norms, dtype=np.float32),
         # Searched only by its own baseline; in a database it is rebuilt from
         # ``fine_images`` (``FastMatcher._refinable``).
-        fine=_fine_spectra(fine_images, image_set.width, searched=config.baseline),
+        fine=(
+            _fine_spectra(fine_images, image_set.width, searched=config.baseline)
+            if refinement or config.baseline
+            else None
+        ),
         fine_images=kept_fine,
         zoomed=tuple(
             _fine_spectra(_fine_scaled(_zoomed(image_set, zoom), config), image_set.width)

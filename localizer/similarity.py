@@ -193,8 +193,8 @@ def sums_from_integral(integral: np.ndarray, dys: np.ndarray, dxs: np.ndarray) -
 
 def _fft() -> ModuleType:
     """``scipy.fft``, imported on first use (0.15-0.3 s, and 28 MB resident): the
-    reference and the fast matcher both transform with it. A :class:`FastMatcher`
-    loads it when made, so a run's first decision does not wait for it.
+    reference transforms with it. The fast matcher calls the same compiled pocketfft
+    without this import (:mod:`localizer.transforms`), with the same bits.
 
     Not ``numpy.fft``: numpy 2.4's single-precision transforms of the fast matcher's
     lengths (75 and 150: factors 3 and 5) took 5 to 7 times scipy's (a quarter-scale

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from pipemap.localizer.similarity import _fft, sums_from_integral
+from pipemap.localizer import transforms
+from pipemap.localizer.similarity import sums_from_integral
 
 __all__ = ["FineSpectra"]
 
@@ -146,8 +147,8 @@ def _fine_spectra(fine: np.ndarray, full_width_px: int, searched: bool = True) -
     zero_mean = fine.astype(np.float64) - fine.mean(axis=(1, 2), keepdims=True)
     length = (_fft_length(rows), _fft_length(width))
     # Two stages so that the zero rows of the padding are never transformed along x.
-    along_x = _fft().rfft(zero_mean.astype(np.float32), n=length[1], axis=2)
-    spectrum = _fft().fft(along_x, n=length[0], axis=1)
+    along_x = transforms.rfft(zero_mean.astype(np.float32), n=length[1], axis=2)
+    spectrum = transforms.fft(along_x, n=length[0], axis=1)
     return FineSpectra(
         rows=rows,
         width=width,
@@ -205,8 +206,8 @@ def _chunk_rows(
         # Query image j with known image (j + k) mod N, in two slices (no gathered copy).
         np.multiply(ramped[: n - k], known.spectrum[k:], out=product[b, : n - k])
         np.multiply(ramped[n - k :], known.spectrum[:k], out=product[b, n - k :])
-    along_y = _fft().ifft(product.reshape(-1, *ramped.shape[1:]), axis=1)[:, :rows]
-    ncc = _fft().irfft(along_y, n=query.length[1], axis=2)[:, :, :width]
+    along_y = transforms.ifft(product.reshape(-1, *ramped.shape[1:]), axis=1)[:, :rows]
+    ncc = transforms.irfft(along_y, n=query.length[1], axis=2)[:, :, :width]
     for b, (known, k) in enumerate(blocks):
         assert known.inv_window_norm is not None, "a query's spectra cannot be searched"
         ncc[b * n : b * n + n - k] *= known.inv_window_norm[k:]

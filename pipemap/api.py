@@ -326,7 +326,7 @@ def match_image_sets(
             )
         if lit:
             image_set = normalised(image_set, illumination)
-        prepared.append(for_pairs(prepare(image_set, fast)))
+        prepared.append(for_pairs(prepare(image_set, fast, refinement=False)))
     return pairwise_matches(prepared, fast, every_offset=every_offset)
 
 

@@ -142,7 +142,7 @@ class ReplayResult:
     visit_sets: Mapping[int, ImageSet] = field(default_factory=dict)
     #: Each visit's own sweep as the localizer's matcher prepared it (lit as it saw
     #: it), in the compact form pairs of visits are compared from
-    #: (:func:`pipemap.localizer.fastmatch.for_pairs`), by sweep id; and the matcher's
+    #: (:func:`pipemap.localizer.pairwise.for_pairs`), by sweep id; and the matcher's
     #: settings. About a tenth of the memory of :attr:`visit_sets`.
     visit_prepared: Mapping[int, PreparedSet] = field(default_factory=dict)
     fast: FastConfig | None = None

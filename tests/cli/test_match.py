@@ -11,7 +11,7 @@ import pytest
 
 from pipemap.imagesets import load_image_set
 from pipemap.localizer import FastConfig, reference_match
-from pipemap.localizer.fastmatch import pairwise_matches
+from pipemap.localizer.pairwise import pairwise_matches
 from pipemap.localizer.presets import (
     ROBUST_FAST,
     ROBUST_HIGHPASS_FRACTION,

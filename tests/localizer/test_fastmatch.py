@@ -307,20 +307,21 @@ def test_the_screening_images_are_opencvs_area_means(
 
 
 def test_the_fft_module_is_loaded_with_the_matcher_not_at_the_first_sweep() -> None:
-    """Importing scipy.fft took 0.2-0.3 s here; paid at the first sweep, it was a robot's
-    first decision's latency (and a tenth of a 13-decision log's mean in ``pipemap
-    score``). Importing the localizer still does not load it (commands that never
-    match start quickly); making a matcher does."""
+    """Loading the transforms, paid at the first sweep, was a robot's first decision's
+    latency (0.2-0.3 s when it was scipy.fft's import). Importing the localizer does
+    not load them (commands that never match start quickly); making a matcher does,
+    and never imports scipy.fft (:mod:`localizer.transforms`)."""
     probe = (
         "import sys\n"
+        "from pipemap.localizer import transforms\n"
         "from pipemap.localizer.fastmatch import FastMatcher\n"
-        "before = 'scipy.fft' in sys.modules\n"
+        "before = transforms._pocketfft.cache_info().currsize\n"
         "FastMatcher()\n"
-        "print(before, 'scipy.fft' in sys.modules)\n"
+        "print(before, transforms._pocketfft.cache_info().currsize, 'scipy.fft' in sys.modules)\n"
     )
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["False", "True"]
+    assert done.stdout.split() == ["0", "1", "False"]
 
 
 def test_a_known_junction_keeps_box_means_in_12_bits_and_gets_them_back_exactly() -> None:

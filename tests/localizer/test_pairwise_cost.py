@@ -8,8 +8,16 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pipemap.localizer import FastConfig, FastMatcher, fastmatch, pairwise_matches, spectra
-from pipemap.localizer.fastmatch import for_pairs, prepare
+from pipemap.localizer import (
+    FastConfig,
+    FastMatcher,
+    fastmatch,
+    pairwise,
+    pairwise_matches,
+    spectra,
+)
+from pipemap.localizer.fastmatch import prepare
+from pipemap.localizer.pairwise import for_pairs
 from tests.localizer.synthetic import panorama, sweep
 
 
@@ -31,7 +39,7 @@ def _counting(monkeypatch: pytest.MonkeyPatch, module: Any, name: str) -> list[i
 
 def test_each_sets_searched_spectra_are_built_once(monkeypatch: pytest.MonkeyPatch) -> None:
     sets = [for_pairs(prepare(s, FastConfig())) for s in _sets(6)]
-    built = _counting(monkeypatch, fastmatch, "_fine_spectra")
+    built = _counting(monkeypatch, pairwise, "_fine_spectra")
     matches = pairwise_matches(sets)
     assert len(matches) == 15
     # Sets 1..5 once as searched sets (set 1..4 then serve as queries too), set 0 once
@@ -75,3 +83,43 @@ def test_refinement_runs_in_bounded_groups_with_the_same_numbers(
     monkeypatch.setattr(spectra, "PEAK_CHUNK_BYTES", 1 << 40)
     assert pairwise_matches(sets, every_offset=True) == whole
     assert max(groups) > 1
+
+
+@pytest.mark.parametrize("zooms", [(), (1.15,)])
+def test_every_offset_of_every_pair_skips_the_screen_with_the_matchers_numbers(
+    monkeypatch: pytest.MonkeyPatch, zooms: tuple[float, ...]
+) -> None:
+    """At the defaults every offset of every pair is refined, so pairwise_matches
+    neither screens nor ranks; its matches are a FastMatcher's to the last bit."""
+    config = FastConfig(zooms=zooms)
+    sets = [pairwise._searched(prepare(s, config)) for s in _sets(5)]
+    everything = FastConfig(zooms=zooms, refine_candidates=4, runner_up_offsets=6)
+    matcher = FastMatcher(everything)
+    for known in sets[1:]:
+        matcher.add(known, keep_spectra=True)
+    by_matcher = matcher.match(sets[0])
+    screens = _counting(monkeypatch, FastMatcher, "screen")
+    found = pairwise_matches(sets[:1] + sets[1:], config)
+    assert screens == []
+    assert [found[(0, j)] for j in range(1, 5)] == by_matcher  # every field, every bit
+    # With fewer offsets than images the screen chooses them, as in a decision.
+    pairwise_matches(sets, FastConfig(zooms=zooms, refine_offsets=2))
+    assert len(screens) == 4
+
+
+def test_sets_prepared_for_pairs_build_their_refinement_spectra_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """prepare(refinement=False) leaves out the spectra for_pairs would drop, so each
+    set's are built once, by whoever refines it, with the same numbers."""
+    from pipemap.localizer import prepared as prepared_module
+
+    images = _sets(4)
+    whole = pairwise_matches([prepare(s, FastConfig()) for s in images])
+    lean = [prepare(s, FastConfig(), refinement=False) for s in images]
+    assert all(p.fine is None for p in lean)
+    assert prepare(images[0], FastConfig(baseline=True), refinement=False).fine is not None
+    built = _counting(monkeypatch, prepared_module, "_fine_spectra")
+    built_later = _counting(monkeypatch, pairwise, "_fine_spectra")
+    assert pairwise_matches(images) == whole
+    assert len(built) == 0 and len(built_later) == 4
