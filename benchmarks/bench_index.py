@@ -7,9 +7,12 @@ and the index (:mod:`pipemap.localizer.index`) ranks them by descriptor. Prints 
 for each query, the index's rank of the screen's best 4 (the candidates a decision
 refines and checks) and of the query's true junction's other sets, and in all how
 many of the screen's best 1 and best 4 fall in the index's shortlist of
-``SHORTLIST`` (64).
+``SHORTLIST`` (64); and, for each shortlist length of ``--shortlists``, how many of
+those and of the sets of the query's junction seen from another entry (``1`` and
+``2``, not ``1`` and ``1_noise``: what a revisit from a new pipe must find) the
+shortlist holds.
 
-Usage: ``python benchmarks/bench_index.py [--distractors 300]``.
+Usage: ``python benchmarks/bench_index.py [--distractors 300] [--shortlists 64,128,256]``.
 """
 
 from __future__ import annotations
@@ -45,9 +48,15 @@ def _ranks(scores: np.ndarray) -> np.ndarray:
     return ranks
 
 
+def _base(name: str) -> str:
+    """The sweep a shared set was made from: ``1`` for ``1``, ``1_noise``, ``1_active``."""
+    return name.split("_")[0]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--distractors", type=int, default=300)
+    parser.add_argument("--shortlists", default="64,128,256", help="lengths to count recall at")
     args = parser.parse_args()
     names = sorted(p.name for p in bench.DEFAULT_SETS.iterdir() if p.is_dir())
     sets = {n: bench.resized(bench.load_image_set(bench.DEFAULT_SETS / n), 400) for n in names}
@@ -62,6 +71,9 @@ def main() -> int:
         matcher.add(prepared[n])
     rows = []
     kept_best = kept_top4 = 0
+    lengths = [int(x) for x in args.shortlists.split(",")]
+    recall = {k: {"screen_best": 0, "screen_top4": 0, "other_entry": 0} for k in lengths}
+    other_entries = 0
     for k, n in enumerate(names):
         query, me = prepared[n], first + k
         peaks, _ = matcher.screen(query)
@@ -76,6 +88,15 @@ def main() -> int:
             for j, other in enumerate(names)
             if other != n and bench._same_junction(info[n], info[other])
         ]
+        # The same junction from another entry: another base name (``1``, not ``1_noise``).
+        other = [
+            first + j for j, o in enumerate(names) if first + j in same and _base(o) != _base(n)
+        ]
+        other_entries += len(other)
+        for k in lengths:
+            recall[k]["screen_best"] += int(index_rank[top4[0]] < k)
+            recall[k]["screen_top4"] += int((index_rank[top4] < k).sum())
+            recall[k]["other_entry"] += int((index_rank[other] < k).sum())
         kept_best += int(index_rank[top4[0]] < SHORTLIST)
         kept_top4 += int((index_rank[top4] < SHORTLIST).sum())
         rows.append(
@@ -93,6 +114,14 @@ def main() -> int:
                 "shortlist": SHORTLIST,
                 "screen_best_in_shortlist": f"{kept_best}/{len(names)}",
                 "screen_top4_in_shortlist": f"{kept_top4}/{4 * len(names)}",
+                "recall": {
+                    str(k): {
+                        "screen_best": f"{r['screen_best']}/{len(names)}",
+                        "screen_top4": f"{r['screen_top4']}/{4 * len(names)}",
+                        "other_entry": f"{r['other_entry']}/{other_entries}",
+                    }
+                    for k, r in recall.items()
+                },
                 "queries": rows,
             },
             indent=1,

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from pipemap.localizer.fastmatch import UNSCREENED
+from pipemap.localizer.fastmatch import UNSCREENED, Shortlisted
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.twoview import TwoViewFit
@@ -177,7 +177,7 @@ def best_candidate(
     known junction. The visit is known when the similarity reaches the threshold.
     The junction ``exclude`` (if any) never competes.
     """
-    pool = [i for i, m in enumerate(matches) if m.refined and i != exclude] or [
+    pool = [i for i in _screened(matches) if matches[i].refined and i != exclude] or [
         i for i in range(len(matches)) if i != exclude
     ]
     if not pool:
@@ -189,6 +189,14 @@ def best_candidate(
     return best, matches[best].similarity, margin
 
 
+def _screened(matches: list[SetMatch]) -> list[int]:
+    """The junctions not :data:`UNSCREENED` (the only ones a screen refines), from the
+    matcher's list when it names them (:class:`Shortlisted`)."""
+    if isinstance(matches, Shortlisted):
+        return matches.screened
+    return [i for i, m in enumerate(matches) if m is not UNSCREENED]
+
+
 def check_order(
     matches: list[SetMatch], allowed: Callable[[int], bool], count: int
 ) -> tuple[list[int], list[int]]:
@@ -198,7 +206,7 @@ def check_order(
     Those the index left out (all :data:`UNSCREENED`, alike) follow in node order and
     are looked at only when the screened ones leave room: the order of sorting every
     known junction, without a pass over each of them."""
-    screened = [i for i, m in enumerate(matches) if m is not UNSCREENED]
+    screened = _screened(matches)
     unscreened = (i for i in range(len(matches)) if matches[i] is UNSCREENED)
 
     def rank(i: int) -> tuple[bool, float, int]:

@@ -147,9 +147,9 @@ class MapExplorer:
                     f"the map's pipe led to node {node_x} port {port_x}; the localizer says "
                     f"node {node} port {arrived}"
                 )
-        records = topomap.visit_records
-        if records and records[-1].conflict is not None:
-            found.append(records[-1].conflict)
+        last = topomap.last_visit
+        if last is not None and last.conflict is not None:
+            found.append(last.conflict)
         tolerance = self._tolerance_m(odometer_m)
         ports = topomap.ports(node)
         if not decision.known:

@@ -253,7 +253,8 @@ class FastMatcher:
         if subset is None:
             matches = screened
         else:
-            matches = [UNSCREENED] * len(self._sets)
+            matches = Shortlisted([UNSCREENED] * len(self._sets))
+            matches.screened = ids
             for r, i in enumerate(ids):
                 matches[i] = screened[r]
         row = {i: r for r, i in enumerate(ids)}
@@ -318,6 +319,14 @@ UNSCREENED = SetMatch(
     rotation_pinhole_rad=0.0,
     refined=False,
 )
+
+
+class Shortlisted(list[SetMatch]):
+    """Matches of a shortlisted screen; ``screened``: the sets not :data:`UNSCREENED`
+    (ascending), so that no caller looks at every known set to find them."""
+
+    screened: list[int]
+
 
 #: Known sets whose refinement spectra a matcher keeps at hand.
 _FINE_CACHE = 8

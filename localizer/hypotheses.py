@@ -104,7 +104,7 @@ class Hypotheses:
         """Add a visit to every live hypothesis, branching each into ``branches`` (one:
         no branching), weigh and prune. Returns the open visits this one settled,
         each as ``(visit index, node)``."""
-        index = len(self.leader.map.visit_records)
+        index = self.leader.map.visit_count
         grown: list[Hypothesis] = []
         for h in self.live:
             for k, branch in enumerate(branches):
@@ -151,7 +151,8 @@ class Hypotheses:
             if exit_index is not None and h.exit_ports is not None:
                 port = h.exit_ports[exit_index]
             h.map.depart(port)
-        return self.leader.map.visit_records[-1].departure_port
+        last = self.leader.map.last_visit
+        return None if last is None else last.departure_port
 
     def block(self) -> int | None:
         """The last departure was blocked, in every hypothesis; returns the leader's port."""
@@ -177,14 +178,16 @@ def _traversal_log_likelihood(
 ) -> float:
     """Visit ``branch`` on ``topomap`` and return the log-likelihood of the traversal
     that led there: a conflict, a pipe driven again at another length."""
-    before = len(topomap.edges())
+    before = topomap.edge_count
     previous = topomap.previous
-    departure = None if previous is None else topomap.visit_records[-1].departure_port
+    last = topomap.last_visit
+    departure = None if previous is None or last is None else last.departure_port
     topomap.visit(branch.node, ports, branch.arrival_port, odometer_m)
-    record = topomap.visit_records[-1]
+    record = topomap.last_visit
+    assert record is not None
     if record.conflict is not None:
         return math.log(CONFLICT_LIKELIHOOD)
-    if previous is None or len(topomap.edges()) != before:
+    if previous is None or topomap.edge_count != before:
         return 0.0
     if departure is not None:
         edge = topomap.edge_at(previous, departure)

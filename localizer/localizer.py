@@ -281,12 +281,14 @@ class Localizer:
                 branches.append(Branch(j, j_arrival, j_exit, self._evidence(j, j_ports)))
                 fits[j] = (matched_all[j].turned(turn), j_fit.turned(turn), j_ports)
         settled = self._hypotheses.visit(branches, new_ports, odometer_m)
-        index = len(self.map.visit_records) - 1
-        if self.map.visits[-1] != node:  # another branch weighs more at once
-            node = self.map.visits[-1]
+        index = self.map.visit_count - 1
+        last = self.map.last_visit
+        assert last is not None
+        if last.node != node:  # another branch weighs more at once
+            node = last.node
             match, fit, ports = fits[node]
             assert match is not None
-            best, sim, arrival = node, match.similarity, self.map.visit_records[-1].arrival_port
+            best, sim, arrival = node, match.similarity, last.arrival_port
             exit_ports = None if ports is None else ports.exit_ports
         decision = Decision(
             node=node,
@@ -353,7 +355,8 @@ class Localizer:
         previous = self.map.previous
         if previous is None:
             return None
-        port = self.map.visit_records[-1].departure_port
+        last = self.map.last_visit
+        port = None if last is None else last.departure_port
         edge = None if port is None else self.map.edge_at(previous, port)
         return None if edge is None or port is None else edge.other(previous, port)[0]
 

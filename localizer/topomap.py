@@ -141,6 +141,22 @@ class TopoMap:
         return tuple(self._visits)
 
     @property
+    def visit_count(self) -> int:
+        """Number of visits so far (``len(visit_records)`` without copying them)."""
+        return len(self._visits)
+
+    @property
+    def last_visit(self) -> MapVisit | None:
+        """The last visit (``visit_records[-1]`` without copying them), ``None`` before
+        the first."""
+        return self._visits[-1] if self._visits else None
+
+    @property
+    def edge_count(self) -> int:
+        """Number of edges (``len(edges())`` without listing them)."""
+        return len(self._edges)
+
+    @property
     def node_count(self) -> int:
         """Number of junctions in the map."""
         return len(self._ports)

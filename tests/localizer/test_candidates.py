@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from pipemap.localizer import Localizer, LocalizerConfig
-from pipemap.localizer.fastmatch import UNSCREENED
+from pipemap.localizer.decision import best_candidate, check_order
+from pipemap.localizer.fastmatch import UNSCREENED, Shortlisted
 from pipemap.localizer.similarity import SetMatch
 
 KNOWN = 2000
@@ -58,3 +59,25 @@ def test_the_candidates_are_the_best_allowed_of_every_known_junction(
     expected = _exhaustive(matches, near, localizer.config.verify_candidates)
     assert fitted == expected
     assert len(asked) <= len(screened) + localizer.config.verify_candidates
+
+
+def test_a_shortlisted_list_gives_the_choice_and_candidates_of_a_pass_over_every_junction() -> None:
+    """The matcher's list names its screened junctions (:class:`Shortlisted`); the best
+    candidate, its margin and the check's candidates found from them are those of a
+    pass over every known junction, whatever is excluded."""
+    rng = np.random.default_rng(5)
+    plain = [UNSCREENED] * KNOWN
+    screened = sorted(rng.choice(KNOWN, 70, replace=False).tolist())
+    for rank, i in enumerate(screened):
+        plain[i] = _match(float(rng.uniform(-0.5, 0.9)), refined=rank % 9 == 0)
+    named = Shortlisted(plain)
+    named.screened = screened
+    refined = [i for i in screened if plain[i].refined]
+    allowed = set(rng.choice(KNOWN, KNOWN // 2, replace=False).tolist())
+    for exclude in (None, refined[0], screened[1]):
+        assert best_candidate(named, exclude) == best_candidate(plain, exclude)
+    assert best_candidate(named)[0] in refined
+    assert check_order(named, allowed.__contains__, 4) == check_order(
+        plain, allowed.__contains__, 4
+    )
+    assert check_order(named, allowed.__contains__, 4)[1] == screened

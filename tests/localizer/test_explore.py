@@ -189,6 +189,8 @@ def test_a_wrong_localizer_ends_the_run_as_inconsistent(wrong: str) -> None:
     assert walk.run() is ExploreEnd.INCONSISTENT
     assert len(walk.explorer.inconsistencies) == 3
     assert len(walk.path) < 40
+    # Among them the map's own conflicts: a pipe end already joined elsewhere.
+    assert any("already leads to" in found for found in walk.explorer.inconsistencies)
 
 
 def test_one_inconsistency_is_tolerated() -> None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pipemap.localizer import FastMatcher
-from pipemap.localizer.fastmatch import UNSCREENED
+from pipemap.localizer.fastmatch import UNSCREENED, Shortlisted
 from pipemap.localizer.index import DescriptorIndex, descriptor
 from tests.localizer.synthetic import panorama, sweep
 
@@ -69,6 +69,8 @@ def test_above_the_limit_only_the_shortlist_and_the_expected_are_screened() -> N
     matches = matcher.match(query, expected=[5])
     screened = [i for i, m in enumerate(matches) if m is not UNSCREENED]
     assert 2 in screened and 5 in screened and len(screened) == 3
+    # The list names them, so the decision finds them without a pass over every set.
+    assert isinstance(matches, Shortlisted) and matches.screened == screened
     assert max(range(len(matches)), key=lambda i: matches[i].similarity) == 2
     assert matches[2].refined
 

@@ -177,6 +177,16 @@ def test_visits_record_every_visit() -> None:
     assert isinstance(m.visits, tuple)
 
 
+def test_the_counts_and_last_visit_are_those_of_the_full_lists() -> None:
+    m = TopoMap()
+    assert (m.visit_count, m.last_visit, m.edge_count) == (0, None, 0)
+    for k, node in enumerate(TREE_VISITS):
+        m.visit(node)
+        assert m.visit_count == len(m.visit_records) == k + 1
+        assert m.last_visit == m.visit_records[-1] and m.last_visit.node == node
+        assert m.edge_count == len(m.edges())
+
+
 def test_tree_exploration() -> None:
     m = TopoMap()
     added = [m.visit(node) for node in TREE_VISITS]
