@@ -122,3 +122,14 @@ def _ray_alone(request: pytest.FixtureRequest) -> Iterator[None]:
         return
     with held_lock(lock):
         yield
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
+    """``--dist loadscope`` hands its units out slowest first, the modules that start
+    Ray one at a time (tests/schedule.py); other modes are xdist's own."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from tests.schedule import SlowestFirst
+
+    return SlowestFirst(config, log, exclusive=RAY_MODULES)
