@@ -288,7 +288,7 @@ def test_a_killed_writer_is_a_crash_exit_3_and_the_log_stays_readable(tmp_path: 
 
 
 def test_a_full_disk_is_a_crash_exit_3_in_one_line() -> None:
-    done = pipemap("record", *SMALL_RUN, "-o", "/dev/full", "--force")
+    done = pipemap("record", *SMALL_RUN, "--network", "tree:3", "-o", "/dev/full", "--force")
     assert done.returncode == 3, done.stderr
     assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
     assert "writing /dev/full failed: No space left on device" in done.stderr
