@@ -11,9 +11,10 @@ keeps two units that start Ray (:data:`tests.conftest.RAY_MODULES`) from running
 once where another unit can run instead: the second would only wait for the first's
 lock (tests/conftest.py).
 
-The figures need not be exact: they only order the work. Refresh them from a run with
-``--durations=0`` when a unit's cost changes much (tests/test_parallel.py checks that
-each names a unit that exists).
+The figures need not be exact: they only order the work. When a unit's cost changes
+much, refresh them from a run's report: ``python3 -m pytest -q -n auto --dist loadscope
+--durations=0 > LOG``, then ``python3 -m tests.schedule LOG`` prints the table's lines
+(tests/test_parallel.py checks that each names a unit that exists).
 """
 
 from __future__ import annotations
