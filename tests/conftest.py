@@ -61,12 +61,26 @@ def paper_sets() -> dict[str, PaperSet]:
 
 @pytest.fixture(scope="session")
 def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An autonomous run of ``paper`` at 64 px, recorded once for the session."""
+    """An autonomous run of ``paper`` at 64 px, recorded once for the session: in a
+    parallel run (``pytest -n N``), once for all the workers, in the folder their own
+    temporary folders share (the first worker to need it records it, the others wait
+    for it under a lock). Tests only read it."""
     from tests.logs import record
 
-    path = tmp_path_factory.mktemp("recorded") / "run.mcap"
-    done = record(path)
-    assert done.returncode == 0, done.stderr
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        path = tmp_path_factory.mktemp("recorded") / "run.mcap"
+        done = record(path)
+        assert done.returncode == 0, done.stderr
+        return path
+    folder = tmp_path_factory.getbasetemp().parent / "recorded"
+    folder.mkdir(exist_ok=True)
+    path, finished = folder / "run.mcap", folder / "finished"
+    with held_lock(folder / "lock"):
+        if not finished.exists():
+            path.unlink(missing_ok=True)  # what a worker that failed left
+            done = record(path)
+            assert done.returncode == 0, done.stderr
+            finished.touch()
     return path
 
 
@@ -122,3 +136,14 @@ def _ray_alone(request: pytest.FixtureRequest) -> Iterator[None]:
         return
     with held_lock(lock):
         yield
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
+    """``--dist loadscope`` hands its units out slowest first, the modules that start
+    Ray one at a time (tests/schedule.py); other modes are xdist's own."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from tests.schedule import SlowestFirst
+
+    return SlowestFirst(config, log, exclusive=RAY_MODULES)

@@ -3,6 +3,8 @@
 A command in the manual is a test, so a page cannot drift from the code. Each page's
 blocks run in order, in one temporary folder (so a later block may read the log an
 earlier one recorded), under ``bash -e -o pipefail``: every command must exit 0. The
+blocks of a page in ``BLOCKS_APART`` read nothing of each other's: each runs alone, in
+a folder of its own, so that a parallel run spreads them over its workers. The
 folder links the checkout's ``recordings/``, ``experiments/``, ``benchmarks/`` and
 ``docs/``, and the team's ``shared/`` folder sits beside it as ``../shared`` does beside
 the checkout; ``pipemap`` and ``python`` are this interpreter's.
@@ -147,9 +149,43 @@ _BLOCKS = _all_blocks()
 _RUN_PAGES = sorted({b.page for b in _BLOCKS if b.skip is None})
 
 
-@pytest.mark.parametrize("page", _RUN_PAGES, ids=lambda p: str(p.relative_to(ROOT)))
-def test_the_sh_blocks_of_a_page_run(page: Path, tmp_path: Path) -> None:
-    _run_page([b for b in _BLOCKS if b.page == page and b.skip is None], tmp_path)
+#: Pages whose blocks read nothing an earlier block wrote: each block runs in a folder
+#: of its own, as a unit of work of its own (below). Their blocks are long (recordings,
+#: benchmarks); apart, they spread over the workers of a parallel run.
+BLOCKS_APART = frozenset(
+    {"docs/lighting.md", "docs/lookalike.md", "docs/recorder.md", "docs/simulator.md"}
+)
+
+
+def _units() -> list[tuple[str, list[Block]]]:
+    """What runs together, in one folder: a page's blocks, or one block of a page of
+    :data:`BLOCKS_APART`; each with a name for its class (the page, and the block's
+    place among the page's blocks that run, from 1)."""
+    units = []
+    for page in _RUN_PAGES:
+        blocks = [b for b in _BLOCKS if b.page == page and b.skip is None]
+        stem = re.sub(r"\W", "_", page.relative_to(ROOT).with_suffix("").as_posix())
+        if page.relative_to(ROOT).as_posix() in BLOCKS_APART:
+            units += [(f"TestPage_{stem}_{i}", [b]) for i, b in enumerate(blocks, 1)]
+        else:
+            units.append((f"TestPage_{stem}", blocks))
+    return units
+
+
+def _unit_class(name: str, blocks: list[Block]) -> type:
+    """A class whose one test runs ``blocks``. A class, not a parameter: run with
+    ``pytest -n N --dist loadscope``, each class is a unit of work of its own, so the
+    pages spread over the workers (a module's functions would all go to one)."""
+
+    def test_the_sh_blocks_run(self: object, tmp_path: Path) -> None:
+        _run_page(blocks, tmp_path)
+
+    body = {"test_the_sh_blocks_run": test_the_sh_blocks_run, "__module__": __name__}
+    return type(name, (), body)
+
+
+for _name, _blocks in _units():
+    globals()[_name] = _unit_class(_name, _blocks)
 
 
 @pytest.mark.parametrize("block", [b for b in _BLOCKS if b.skip is not None], ids=lambda b: b.name)
@@ -213,3 +249,8 @@ def test_every_install_block_is_skipped() -> None:
     they would reinstall the package under test."""
     installs = [b.name for b in _BLOCKS if "pip install" in b.script and b.skip is None]
     assert not installs, f"blocks that install but are not skipped: {installs}"
+
+
+def test_every_page_apart_is_a_page_that_runs() -> None:
+    pages = {p.relative_to(ROOT).as_posix() for p in _RUN_PAGES}
+    assert pages >= BLOCKS_APART, f"not pages with blocks that run: {BLOCKS_APART - pages}"

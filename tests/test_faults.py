@@ -321,7 +321,7 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(
     "args,output",
     [
         (["score", str(STORED), "--save-results"], "score"),
-        (["sim", "--network", "paper", "--resolution", "16", "--save-sweeps"], "sweeps"),
+        (["sim", "--network", "tree:2", "--resolution", "16", "--save-sweeps"], "sweeps"),
     ],
 )
 def test_folder_outputs_are_replaced_only_with_force(

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import RAY_MODULES, REPO, held_lock, ray_lock
+from tests.schedule import SlowestFirst
 
 #: What a test module that starts Ray itself contains.
 STARTS_RAY = ("ray.init(", '"--head"')
@@ -72,3 +73,139 @@ def test_the_lock_keeps_another_worker_waiting_until_it_is_released(tmp_path: Pa
     assert not _locked(lock)
     with held_lock(lock):  # and this process can take it now
         assert lock.exists()
+
+
+# ------------------------------------------------- the order of the work (tests/schedule.py)
+
+
+class _Node:
+    """A worker as the scheduler sees it: it is sent indices of tests to run."""
+
+    def __init__(self, name: str) -> None:
+        self.gateway = type("Gateway", (), {"id": name})()
+        self.sent: list[int] = []
+        self.shutting_down = False
+
+    def send_runtest_some(self, indices: list[int]) -> None:
+        self.sent.extend(indices)
+
+    def shutdown(self) -> None:
+        self.shutting_down = True
+
+
+class _Config:
+    option = type("Option", (), {"loadscopereorder": True})()
+
+    def getvalue(self, name: str) -> object:
+        return {"tx": ["2*popen"], "dist": "loadscope"}[name]
+
+
+def _scheduled(
+    collection: list[str], seconds: dict[str, float], exclusive: frozenset[str] = frozenset()
+) -> tuple[SlowestFirst, list[_Node]]:
+    """A scheduler for two workers, its collection handed out."""
+    import tests.schedule
+
+    old = dict(tests.schedule.SECONDS)
+    tests.schedule.SECONDS.clear()
+    tests.schedule.SECONDS.update(seconds)
+    try:
+        scheduler = SlowestFirst(_Config(), None, exclusive=exclusive)
+        nodes = [_Node("gw0"), _Node("gw1")]
+        for node in nodes:
+            scheduler.add_node(node)
+            scheduler.add_node_collection(node, collection)
+        scheduler.schedule()
+    finally:
+        tests.schedule.SECONDS.clear()
+        tests.schedule.SECONDS.update(old)
+    return scheduler, nodes
+
+
+def _first_units(collection: list[str], nodes: list[_Node]) -> list[str]:
+    """The unit each worker was sent first."""
+    return [collection[node.sent[0]].rsplit("::", 1)[0] for node in nodes]
+
+
+def test_loadscope_runs_with_the_slowest_first_scheduler() -> None:
+    from tests.conftest import pytest_xdist_make_scheduler
+
+    scheduler = pytest_xdist_make_scheduler(_Config(), None)  # type: ignore[arg-type]
+    assert isinstance(scheduler, SlowestFirst) and scheduler.exclusive == RAY_MODULES
+    other = _Config()
+    other.getvalue = lambda name: {"tx": ["2*popen"], "dist": "load"}[name]  # type: ignore[method-assign]
+    assert pytest_xdist_make_scheduler(other, None) is None  # type: ignore[arg-type]
+
+
+def test_the_slowest_units_go_out_first() -> None:
+    """xdist alone would hand out ``many.py`` first (the most tests); the measured
+    seconds put the two slow units first, one on each worker."""
+    collection = [
+        *(f"tests/many.py::test_{i}" for i in range(8)),
+        "tests/slow.py::test_a",
+        "tests/docs.py::TestPage_x::test_run",
+        "tests/docs.py::TestPage_y::test_run",
+    ]
+    seconds = {"tests/slow.py": 300.0, "tests/docs.py::TestPage_y": 200.0}
+    _, nodes = _scheduled(collection, seconds)
+    assert _first_units(collection, nodes) == ["tests/slow.py", "tests/docs.py::TestPage_y"]
+
+
+def test_a_second_ray_unit_waits_while_other_work_remains() -> None:
+    collection = ["tests/ray1.py::test_a", "tests/ray2.py::test_a", "tests/quick.py::test_a"]
+    seconds = {"tests/ray1.py": 100.0, "tests/ray2.py": 90.0, "tests/quick.py": 10.0}
+    ray = frozenset({"tests/ray1.py", "tests/ray2.py"})
+    _, nodes = _scheduled(collection, seconds, exclusive=ray)
+    assert _first_units(collection, nodes) == ["tests/ray1.py", "tests/quick.py"]
+    _, nodes = _scheduled(collection, seconds)  # not exclusive: slowest first alone
+    assert _first_units(collection, nodes) == ["tests/ray1.py", "tests/ray2.py"]
+
+
+def test_each_docs_page_is_a_unit_of_its_own() -> None:
+    """tests/test_docs_run.py holds a class per page that runs (per block, for the pages
+    whose blocks run apart): a unit each, every block that runs in one of them."""
+    import tests.test_docs_run as docs_run
+
+    classes = {n: c for n, c in vars(docs_run).items() if n.startswith("TestPage_")}
+    units = docs_run._units()
+    assert sorted(classes) == sorted(name for name, _ in units)
+    assert len(units) > len(docs_run._RUN_PAGES) >= 10
+    ran = [b for _, blocks in units for b in blocks]
+    assert sorted(b.name for b in ran) == sorted(b.name for b in docs_run._BLOCKS if b.skip is None)
+
+
+def test_every_timed_unit_exists() -> None:
+    """The table names units that are still there: a module, or a module's class."""
+    import importlib
+
+    from tests.schedule import SECONDS
+
+    assert SECONDS, "the table of slow units is empty"
+    for scope in SECONDS:
+        module, _, cls = scope.partition("::")
+        assert (REPO / module).is_file(), f"{scope}: no such module"
+        if cls:
+            loaded = importlib.import_module(module.removesuffix(".py").replace("/", "."))
+            assert hasattr(loaded, cls), f"{scope}: no such class"
+
+
+def test_the_table_is_made_from_a_durations_report() -> None:
+    from tests.schedule import scope_seconds
+
+    report = """============================= slowest 60 durations =============================
+653.32s call     tests/test_docs_run.py::TestPage_docs_lookalike_2::test_the_sh_blocks_run
+190.05s setup    tests/test_experiment.py::test_the_experiment_writes_every_table_and_figure
+20.00s call     tests/test_experiment.py::test_other[a::b]
+10.00s teardown tests/test_experiment.py::test_other[x]
+30.00s call     tests/localizer/test_quick.py::test_one
+(4 durations < 0.005s hidden.  Use -vv to show these durations.)
+"""
+    assert scope_seconds(report) == {
+        "tests/test_docs_run.py::TestPage_docs_lookalike_2": 653.32,
+        "tests/test_experiment.py": 220.05,
+        "tests/localizer/test_quick.py": 30.0,
+    }
+    assert list(scope_seconds(report, least_s=200.0)) == [
+        "tests/test_docs_run.py::TestPage_docs_lookalike_2",
+        "tests/test_experiment.py",
+    ]

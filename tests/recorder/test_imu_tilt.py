@@ -15,14 +15,16 @@ from pipemap.sim import Condition
 from pipemap.sim.network import build_network
 
 
-def _record(path: Path, tilt_deg: float, condition: Condition = Condition.PERFECT) -> None:
+def _record(
+    path: Path, tilt_deg: float, condition: Condition = Condition.PERFECT, network: str = "paper"
+) -> None:
     settings = RecordSettings(
-        network="paper",
+        network=network,
         condition=condition,
         resolution_px=32,
         tilt_rad=math.radians(tilt_deg),
     )
-    record_run(path, settings, build_network("paper"), __version__)
+    record_run(path, settings, build_network(network), __version__)
 
 
 def _logged(path: Path) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
@@ -89,7 +91,7 @@ def test_the_replay_reads_the_imu_from_robot_topics(tilted: Path) -> None:
 
 def test_a_level_robot_logs_zero_tilt(tmp_path: Path) -> None:
     path = tmp_path / "level.mcap"
-    _record(path, 0.0)
+    _record(path, 0.0, network="tree:3")  # a small world: each of its sweeps is level
     imu, true = _logged(path)
     assert imu and all(v == (0.0, 0.0) for v in imu + true)
     assert all(s.imu_tilt_rad == (0.0, 0.0) for s in _sweeps(path))

@@ -210,7 +210,7 @@ def _start_long_recording(target: Path) -> subprocess.Popen[str]:
             "pipemap",
             "record",
             "--network",
-            "tree:12",
+            "tree:4",
             "--seed",
             "1",
             "--resolution",
@@ -288,7 +288,7 @@ def test_a_killed_writer_is_a_crash_exit_3_and_the_log_stays_readable(tmp_path: 
 
 
 def test_a_full_disk_is_a_crash_exit_3_in_one_line() -> None:
-    done = pipemap("record", *SMALL_RUN, "-o", "/dev/full", "--force")
+    done = pipemap("record", *SMALL_RUN, "--network", "tree:3", "-o", "/dev/full", "--force")
     assert done.returncode == 3, done.stderr
     assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr
     assert "writing /dev/full failed: No space left on device" in done.stderr
@@ -365,6 +365,8 @@ def test_the_log_records_the_lamp_and_lighting_even_turns_it_off(
 
     assert lamp_strength(read_log(recorded_run).metadata[METADATA_RUN]) == 1.0
     even = tmp_path / "even.mcap"
-    done = record(even, "--lighting", "even")
+    # A network of three junctions: the lamp is a setting of the run, not of the network
+    # (the small run's paper network was only the larger world to build).
+    done = record(even, "--lighting", "even", "--network", "tree:3")
     assert done.returncode == 0, done.stderr
     assert lamp_strength(read_log(even).metadata[METADATA_RUN]) == 0.0
