@@ -25,7 +25,6 @@ import json
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
@@ -34,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipemap.sim.geometry import Mesh, half_pipe_mesh  # noqa: E402
 from pipemap.sim.world import pybullet  # noqa: E402  (imported quietly there)
+from pipemap.sim.world_pieces import add_body  # noqa: E402
 
 
 def _rss_mib() -> float:
@@ -51,31 +51,11 @@ def _texture(client: int, folder: Path, name: str, rng: np.random.Generator) -> 
 
 
 def _body(client: int, mesh: Mesh, texture: int, x_m: float) -> int:
-    kw: dict[str, Any] = {"physicsClientId": client}
-    visual = pybullet.createVisualShape(
-        pybullet.GEOM_MESH,
-        vertices=mesh.vertices.tolist(),
-        indices=mesh.indices.ravel().tolist(),
-        uvs=mesh.uvs.tolist(),
-        normals=mesh.normals.tolist(),
-        **kw,
+    body = add_body(pybullet, client, mesh, texture)
+    pybullet.resetBasePositionAndOrientation(
+        body, [x_m, 0.0, 0.0], [0, 0, 0, 1], physicsClientId=client
     )
-    collision = pybullet.createCollisionShape(
-        pybullet.GEOM_MESH,
-        vertices=mesh.vertices.tolist(),
-        indices=mesh.indices.ravel().tolist(),
-        flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
-        **kw,
-    )
-    body = pybullet.createMultiBody(
-        baseMass=0.0,
-        baseCollisionShapeIndex=collision,
-        baseVisualShapeIndex=visual,
-        basePosition=[x_m, 0.0, 0.0],
-        **kw,
-    )
-    pybullet.changeVisualShape(body, -1, textureUniqueId=texture, **kw)
-    return int(body)
+    return body
 
 
 def run(mode: str, pieces: int, rounds: int) -> dict[str, object]:

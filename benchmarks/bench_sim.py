@@ -10,8 +10,10 @@ real-time factor (simulated seconds per wall second).
 Usage: ``python benchmarks/bench_sim.py [--network NAME] [--resolution PX] [--no-run]``.
 With ``--network`` (``grid:10x10``, ``random:100``, ...) it measures that network
 instead: world build time and the memory it adds (resident set), render time per
-image at the first 12 nodes' centres with culling off and on (see ``sim/visibility.py``;
-the images are compared), and (unless ``--no-run``) an autonomous run
+image at the first 12 nodes' centres with culling on, the pieces those images built
+and the memory then (the world is streamed: ``sim/world.py``); with ``--whole`` the
+world is built whole first and the views are drawn with culling off too (see
+``sim/visibility.py``; the images are compared); and (unless ``--no-run``) an autonomous run
 at ``--resolution`` with its real-time factor. CPU time (``time.process_time``) is
 printed beside wall time.
 """
@@ -25,6 +27,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import math  # noqa: E402
+import resource  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -47,7 +50,7 @@ def _rss_mib() -> float:
     return float("nan")
 
 
-def network_benchmark(name: str, resolution: int, run: bool) -> None:
+def network_benchmark(name: str, resolution: int, run: bool, whole: bool) -> None:
     """World build, its memory, render per image and an autonomous run of ``name``."""
     network = build_network(name, seed=0)
     junctions = sum(1 for n in network.nodes if network.degree(n.label) >= 3)
@@ -57,16 +60,23 @@ def network_benchmark(name: str, resolution: int, run: bool) -> None:
     )
     rss = _rss_mib()
     wall, cpu = time.perf_counter(), time.process_time()
-    world = World(network, seed=0)
+    world = World(network, seed=0, stream=not whole)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    built, pieces = world.pieces_built
     print(
-        f"world build: {wall:.2f} s wall, {cpu:.2f} s CPU, {world.triangle_count} triangles, "
+        f"world build ({'whole' if whole else 'streamed'}): {wall:.2f} s wall, {cpu:.2f} s CPU, "
+        f"{built} of {pieces} pieces, {world.triangle_count} triangles, "
         f"+{_rss_mib() - rss:.0f} MiB resident"
     )
     camera = CameraSpec(resolution_px=resolution)
     views = [((n.x_m + 1e-4, n.y_m + 1e-4, 0.05), 0.0) for n in network.nodes[:12]]
+    wall, cpu = time.perf_counter(), time.process_time()
+    for eye, yaw in views:  # builds the pieces they see, if the world is streamed
+        world.render(eye, yaw, camera)
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    print(f"first pass over the {len(views)} views: {wall:.2f} s wall, {cpu:.2f} s CPU")
     images = {}
-    for cull in (False, True):
+    for cull in (False, True) if whole else (True,):
         world.cull = cull
         walls, cpus, drawn, shots = [], [], [], []
         for eye, yaw in views:
@@ -82,8 +92,15 @@ def network_benchmark(name: str, resolution: int, run: bool) -> None:
             f"{statistics.median(cpus) * 1000:.0f} ms CPU (median of {len(walls)}), "
             f"{statistics.median(drawn):.0f} bodies drawn (median)"
         )
-    same = sum(bool((a == b).all()) for a, b in zip(images[False], images[True], strict=True))
-    print(f"images identical with and without culling: {same} of {len(views)}")
+    if whole:
+        pairs = zip(images[False], images[True], strict=True)
+        same = sum(bool((a == b).all()) for a, b in pairs)
+        print(f"images identical with and without culling: {same} of {len(views)}")
+    built, pieces = world.pieces_built
+    print(
+        f"after the views: {built} of {pieces} pieces built, +{_rss_mib() - rss:.0f} MiB "
+        f"resident, peak {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB"
+    )
     if run:
         wall, cpu = time.perf_counter(), time.process_time()
         result = autonomous_run(world, camera, seed=0)
@@ -103,13 +120,18 @@ def main() -> int:
     parser.add_argument("--network", default=None, help="measure this network instead")
     parser.add_argument("--resolution", type=int, default=400, help="image size (400)")
     parser.add_argument("--no-run", action="store_true", help="skip the autonomous run")
+    parser.add_argument(
+        "--whole",
+        action="store_true",
+        help="build the world whole (stream=False) and compare culling off and on",
+    )
     args = parser.parse_args()
     if args.network is not None:
-        network_benchmark(args.network, args.resolution, not args.no_run)
+        network_benchmark(args.network, args.resolution, not args.no_run, args.whole)
         return 0
     network = build_network("paper")
     start = time.perf_counter()
-    world = World(network, seed=0)
+    world = World(network, seed=0, stream=False)
     build = time.perf_counter() - start
     print(f"# paper network: {len(network.nodes)} nodes, {len(network.pipes)} pipes, one core")
     triangles = world.triangle_count

@@ -1,9 +1,17 @@
-"""The simulated world: a pipe network built once in a headless PyBullet client.
+"""The simulated world: a pipe network in a headless PyBullet client.
 
 Each half-pipe and each junction chamber is a static body with a visual mesh, a
 texture from the seeded aged-pipe family and a concave collision mesh (for range
 rays). Both halves of a pipe share one texture, so a pipe looks continuous and
 every junction looks like itself and no other.
+
+The world is streamed (``stream=True``, the default): a piece (a pipe or a node's
+chamber, :mod:`sim.world_pieces`) is built when an image or a range ray first needs
+it, so building a world takes no time and its memory follows what the robot's
+cameras and rangers have reached, not the network. Each piece draws its texture from
+its own seed, so the images and ranges are those of the world built whole
+(``stream=False``) to the bit. Pieces are never released: PyBullet keeps memory of
+removed bodies and of closed clients (``benchmarks/bench_world_memory.py``).
 
 Rendering uses TinyRenderer (no GPU, no window) for the albedo and depth of each
 pixel, then lights the scene. A real pipe robot carries a lamp at the camera;
@@ -14,7 +22,7 @@ of the angle between ray and surface), mixed with uniform light by
 see that field.
 
 PyBullet pitfalls seen in a probe and avoided here: removing bodies leaks mesh
-memory (the world is built once per run and never edited); a camera exactly on a
+memory (no body is ever removed); a camera exactly on a
 ring of mesh vertices rendered 100x slower (callers nudge the eye by 0.1 mm).
 
 TinyRenderer draws every body for every image, so before each image the world
@@ -44,12 +52,11 @@ import numpy as np
 
 from pipemap.defaults import LAMP_STRENGTHS, LIGHTING, RESOLUTION_PX
 from pipemap.errors import SimError, WriteError
-from pipemap.sim.geometry import Mesh, chamber_mesh, chamber_u_origin_rad, half_pipe_mesh
-from pipemap.sim.lookalike import LookAlike, LookTextures
+from pipemap.sim.lookalike import LookAlike
 from pipemap.sim.network import Network
 from pipemap.sim.obstacles import Obstacle
-from pipemap.sim.textures import node_texture, pipe_texture
 from pipemap.sim.visibility import ALL, Arc, PortalGraph, frustum_arc, visible_parts
+from pipemap.sim.world_pieces import Pieces
 
 __all__ = ["CameraSpec", "World", "body_rotation"]
 
@@ -148,6 +155,7 @@ class World:
         obstacles: tuple[Obstacle, ...] = (),
         looks: LookAlike | None = None,
         on_build: Callable[[int, int], None] | None = None,
+        stream: bool = True,
     ) -> None:
         self.network = network
         #: The junctions that share a look (:mod:`sim.lookalike`); none by default.
@@ -163,24 +171,36 @@ class World:
         self.cull = cull
         self._client = pybullet.connect(pybullet.DIRECT)
         self._tmp = _texture_folder()
-        self.triangle_count = 0
-        self._node_bodies: dict[str, list[int]] = {n.label: [] for n in network.nodes}
-        self._pipe_bodies: dict[tuple[str, str], list[int]] = {}
+        #: Build each piece when an image or a range ray first needs it (the default),
+        #: or every piece now (``stream=False``); the images are the same.
+        self.stream = stream
+        self._pieces = Pieces(
+            pybullet, self._client, network, self.looks, seed, texture_px, Path(self._tmp.name)
+        )
+        self._node_bodies = self._pieces.node_bodies
+        self._pipe_bodies = self._pieces.pipe_bodies
         self._hidden: set[int] = set()
         self._portals = PortalGraph(network)
         #: Bodies drawn by the last image (all of them when nothing was culled).
         self.drawn_bodies = 0
         try:
-            shared = LookTextures(network, self.looks, seed, texture_px)
-            self._build(np.random.default_rng(seed), texture_px, shared)
+            if not stream:
+                self._pieces.everything(self._on_build)
             if self.obstacles:
                 self._build_obstacles(np.random.default_rng([seed, _DEPOSIT_STREAM]))
         except BaseException:
             self.close()
             raise
-        # PyBullet has read every texture: the files go now, so that a process killed
-        # later (Ray ends a stopped batch's workers so) leaves none of them behind.
-        self._tmp.cleanup()
+
+    @property
+    def triangle_count(self) -> int:
+        """Triangles of the pieces built so far."""
+        return self._pieces.triangle_count
+
+    @property
+    def pieces_built(self) -> tuple[int, int]:
+        """(pieces built so far, pieces in all), a piece being a pipe or a node."""
+        return self._pieces.built, self._pieces.pieces
 
     def __enter__(self) -> World:
         return self
@@ -197,120 +217,6 @@ class World:
 
     # -- building ---------------------------------------------------------------------
 
-    def _texture(self, name: str, image: np.ndarray) -> int:
-        path = Path(self._tmp.name) / f"{name}.png"
-        # Encoded in memory and written by Python: a full disk is one line (exit 3),
-        # never libpng's complaint and a texture PyBullet cannot load.
-        _, png = cv2.imencode(".png", cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
-        try:
-            path.write_bytes(png.tobytes())
-        except OSError as exc:
-            raise WriteError(
-                f"{path.parent}: cannot write the world's texture files ({exc.strerror or exc})"
-            ) from None
-        return int(pybullet.loadTexture(str(path), physicsClientId=self._client))
-
-    def _add(self, mesh: Mesh, texture_id: int) -> int:
-        kwargs: dict[str, Any] = {"physicsClientId": self._client}
-        visual = pybullet.createVisualShape(
-            pybullet.GEOM_MESH,
-            vertices=mesh.vertices.tolist(),
-            indices=mesh.indices.ravel().tolist(),
-            uvs=mesh.uvs.tolist(),
-            normals=mesh.normals.tolist(),
-            **kwargs,
-        )
-        collision = pybullet.createCollisionShape(
-            pybullet.GEOM_MESH,
-            vertices=mesh.vertices.tolist(),
-            indices=mesh.indices.ravel().tolist(),
-            flags=pybullet.GEOM_FORCE_CONCAVE_TRIMESH,
-            **kwargs,
-        )
-        body = pybullet.createMultiBody(
-            baseMass=0.0,
-            baseCollisionShapeIndex=collision,
-            baseVisualShapeIndex=visual,
-            **kwargs,
-        )
-        pybullet.changeVisualShape(body, -1, textureUniqueId=texture_id, **kwargs)
-        self.triangle_count += mesh.triangle_count
-        return int(body)
-
-    def _build(self, rng: np.random.Generator, texture_px: int, shared: LookTextures) -> None:
-        net = self.network
-        worn = self.looks.looks
-        look_tids: dict[str, int] = {}
-        circumference = math.pi * net.diameter_m
-        # One generator per pipe and per node, drawn in a fixed order: a texture does
-        # not change when another part of the network does.
-        pipe_rngs = rng.spawn(len(net.pipes))
-        node_rngs = rng.spawn(len(net.nodes))
-        pieces = len(net.pipes) + len(net.nodes)
-        for built, (pipe, prng) in enumerate(zip(net.pipes, pipe_rngs, strict=True)):
-            if self._on_build is not None:
-                self._on_build(built, pieces)
-            length = net.length_m(pipe.a, pipe.b)
-            texture = pipe_texture(
-                prng,
-                width_px=texture_px * 2,
-                height_px=texture_px,
-                length_m=length,
-                circumference_m=circumference,
-            )
-            own = (
-                None
-                if pipe.a in worn and pipe.b in worn
-                else self._texture(f"pipe-{pipe.a}-{pipe.b}", texture)
-            )
-            for here, there, u_range in (
-                (pipe.a, pipe.b, (0.0, 0.5)),
-                (pipe.b, pipe.a, (1.0, 0.5)),
-            ):
-                tid = own
-                if here in worn:  # the half at a node that wears a shared look
-                    name, image, u_range = shared.half_pipe(here, there)
-                    if name not in look_tids:
-                        look_tids[name] = self._texture(name, image)
-                    tid = look_tids[name]
-                assert tid is not None
-                headings = net.pipe_headings(here)
-                node = net.node(here)
-                others = [h for label, h in headings.items() if label != there]
-                mesh = half_pipe_mesh(
-                    (node.x_m, node.y_m),
-                    headings[there],
-                    others,
-                    length / 2.0,
-                    self.radius_m,
-                    u_range,
-                )
-                body = self._add(mesh, tid)
-                self._pipe_bodies.setdefault((pipe.a, pipe.b), []).append(body)
-                self._node_bodies[pipe.a].append(body)
-                self._node_bodies[pipe.b].append(body)
-        for built, (node, nrng) in enumerate(zip(net.nodes, node_rngs, strict=True)):
-            if self._on_build is not None:
-                self._on_build(len(net.pipes) + built, pieces)
-            # The entry is closed too: the launch pit's wall, not open air, which
-            # would render as a black half-image that looks like any dark view.
-            directions = list(net.pipe_headings(node.label).values())
-            chamber = chamber_mesh((node.x_m, node.y_m), directions, self.radius_m)
-            if chamber is not None:
-                # Drawn for a 0.2 m sphere, so the chamber's stains and deposits come out
-                # twice as coarse as the pipes'. At the true scale the fine detail of the
-                # end caps washes out at 400 px: on the paper tour two different dead
-                # ends then scored 0.366, over the 0.36 threshold (0.339 as drawn).
-                origin = chamber_u_origin_rad(directions)
-                if node.label in worn and origin is not None:
-                    texture = shared.chamber(node.label, origin)
-                else:
-                    texture = node_texture(nrng, texture_px, texture_px, radius_m=0.2)
-                tid = self._texture(f"node-{node.label}", texture)
-                self._node_bodies[node.label].append(self._add(chamber, tid))
-        if self._on_build is not None:
-            self._on_build(pieces, pieces)
-
     def _build_obstacles(self, rng: np.random.Generator) -> None:
         """A textured box per deposit, drawn and culled with its pipe."""
         kwargs: dict[str, Any] = {"physicsClientId": self._client}
@@ -318,7 +224,7 @@ class World:
             # Sediment: brown, mottled, darker where wet.
             shade = rng.uniform(0.55, 1.0, (32, 32, 1)).astype(np.float32)
             texture = np.clip(shade * np.array([150.0, 110.0, 70.0]), 0, 255).astype(np.uint8)
-            tid = self._texture(f"deposit-{k}", cv2.resize(texture, (64, 64)))
+            tid = self._pieces._texture(f"deposit-{k}", cv2.resize(texture, (64, 64)))
             half = [o.length_m / 2.0, o.width_m / 2.0, o.height_m / 2.0]
             visual = pybullet.createVisualShape(pybullet.GEOM_BOX, halfExtents=half, **kwargs)
             collision = pybullet.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half, **kwargs)
@@ -339,13 +245,19 @@ class World:
 
     def _cull(self, eye_xyz_m: tuple[float, float, float], view: tuple[float, float]) -> None:
         """Hide the bodies no line of sight from the eye can reach, show the others."""
+        parts = None
+        if self.cull:
+            parts = visible_parts(self._portals, (eye_xyz_m[0], eye_xyz_m[1]), view)
+        if parts is None:
+            self._pieces.everything()
+        else:
+            self._pieces.parts(*parts)
         everything = {b for bodies in self._pipe_bodies.values() for b in bodies}
         everything.update(b for bodies in self._node_bodies.values() for b in bodies)
         if not self.cull and not self._hidden:
             self.drawn_bodies = len(everything)
             return
-        parts = visible_parts(self._portals, (eye_xyz_m[0], eye_xyz_m[1]), view)
-        if not self.cull or parts is None:
+        if parts is None:
             shown = everything
         else:
             nodes, pipes = parts
@@ -433,6 +345,9 @@ class World:
         """Distance along each ray to the first wall, or ``max_range_m`` if none."""
         directions = directions / np.linalg.norm(directions, axis=1, keepdims=True)
         ends = origins_m + directions * max_range_m
+        if self.stream:  # every wall a ray may reach is built first
+            points = np.concatenate([origins_m, ends])[:, :2]
+            self._pieces.near(points.min(axis=0), points.max(axis=0))
         hits = pybullet.rayTestBatch(
             origins_m.tolist(), ends.tolist(), physicsClientId=self._client
         )
