@@ -24,7 +24,7 @@ import logging
 import math
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -121,6 +121,9 @@ class VisitDecision:
     #: Wall time of the decision in each of its phases (:mod:`localizer.phases`),
     #: seconds; like ``latency_s``, not part of any deterministic output.
     phases_s: Mapping[str, float] = field(default_factory=dict)
+    #: Probes the localizer asked for whose move the robot refused (its rangers found
+    #: a wall within the move; the log's warning says so): not made, not missing.
+    probes_refused: int = 0
 
 
 @dataclass
@@ -172,9 +175,12 @@ class _LoggedProbes:
     """Answers probe requests from the probe sweeps the log holds for one visit (their
     image sets made here, before the decision: they are the camera's, not its work)."""
 
-    def __init__(self, probes: list[LoggedSweep]) -> None:
+    def __init__(self, probes: list[LoggedSweep], refused: Sequence[str] = ()) -> None:
         self.probes = [(sweep.probe, sweep.images) for sweep in probes]
+        self.refused_kinds = list(refused)
         self.not_in_log = 0
+        #: Requests the robot refused to move for (the log's warning says so).
+        self.refused = 0
 
     def probe(self, request: ProbeRequest) -> ImageSet | None:
         for probe, images in self.probes:
@@ -188,7 +194,11 @@ class _LoggedProbes:
                 and math.isclose(left, request.left_m, rel_tol=0.0, abs_tol=_PROBE_MATCH)
             ):
                 return images
-        self.not_in_log += 1
+        if request.kind.value in self.refused_kinds:
+            self.refused_kinds.remove(request.kind.value)
+            self.refused += 1
+        else:
+            self.not_in_log += 1
         return None
 
 
@@ -314,7 +324,10 @@ class _Replay:
         odometer = None if scan is None else scan.odometer_m
         position = None if scan is None else scan.position_m
         # The sets are made before the clock starts: the latency is the decision's.
-        images, answers = sweep.images, _LoggedProbes(self.probes.pop(sweep.visit_id, []))
+        images = sweep.images
+        answers = _LoggedProbes(
+            self.probes.pop(sweep.visit_id, []), self.events.refused(sweep.visit_id)
+        )
         start = time.perf_counter()
         decision = localizer.localize(images, answers, exits, odometer, position)
         latency = time.perf_counter() - start
@@ -339,6 +352,7 @@ class _Replay:
                 missing,
                 scan,
                 dict(localizer.last_phases),
+                answers.refused,
             )
         )
         if _LOG.isEnabledFor(logging.DEBUG):
@@ -356,6 +370,12 @@ class _Replay:
             warnings.append(
                 f"{asked} probe sweep(s) asked for are not in the log; those visits were "
                 "decided without them"
+            )
+        refused = sum(v.probes_refused for v in self.decided)
+        if refused:
+            warnings.append(
+                f"{refused} probe move(s) asked for were refused by the robot (a wall within "
+                "the move, as the log says); those visits were decided without them, as online"
             )
         if self.probes_not_made:
             condition = (self.metadata or {}).get("condition")
