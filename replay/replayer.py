@@ -25,7 +25,7 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pipemap.errors import InputError, LogFormatError
@@ -240,8 +240,11 @@ class _Replay:
         keep_sets: bool,
         whole: bool,
         keep_prepared: bool = False,
+        recorded_threshold: bool = False,
     ) -> None:
         self.source, self.config, self.progress = source, config, progress
+        self.recorded_threshold = recorded_threshold
+        self.threshold_note: str | None = None
         self.keep_sets, self.whole, self.keep_prepared = keep_sets, whole, keep_prepared
         self.visit_prepared: dict[int, PreparedSet] = {}
         self.sweeps = SweepAssembler(source.name)
@@ -308,6 +311,9 @@ class _Replay:
             # A lamp-lit camera's sweeps are normalised (unless the caller says otherwise);
             # the run's settings open the log, before its first sweep.
             self.metadata = _run_settings(self.source)
+            self.config, self.threshold_note = _as_recorded(
+                self.config, self.metadata, self.recorded_threshold
+            )
             lit = lamp_strength(self.metadata) > 0.0
             self.localizer = Localizer(self.config.for_camera(lit), clock=time.perf_counter)
         localizer = self.localizer
@@ -371,6 +377,8 @@ class _Replay:
                 f"{asked} probe sweep(s) asked for are not in the log; those visits were "
                 "decided without them"
             )
+        if self.threshold_note is not None:
+            warnings.append(f"{name}: {self.threshold_note}")
         refused = sum(v.probes_refused for v in self.decided)
         if refused:
             warnings.append(
@@ -420,6 +428,26 @@ def _check_downsample(source: MessageSource, config: LocalizerConfig) -> None:
         )
 
 
+def _as_recorded(
+    config: LocalizerConfig, run: dict[str, str], recorded: bool
+) -> tuple[LocalizerConfig, str | None]:
+    """``config``, with the threshold of the run's settings ``run`` if ``recorded``;
+    and a note when the threshold then differs from the run's (``None`` when they
+    agree, or the settings do not say)."""
+    try:
+        threshold = float(run["threshold"])
+    except (KeyError, ValueError):
+        return config, None
+    if recorded:
+        config = replace(config, threshold=threshold)
+    if config.threshold == threshold:
+        return config, None
+    return config, (
+        f"replayed at threshold {config.threshold:g}, though recorded at {threshold:g}: its "
+        f"probes were asked for, and its online decisions made, at {threshold:g}"
+    )
+
+
 def _run_settings(source: MessageSource) -> dict[str, str]:
     """The run's ``pipemap.run`` settings, read before the first sweep (the record
     opens the log). Absent, its record was damaged (the reader accepts such a log for
@@ -440,8 +468,14 @@ def replay(
     progress: Callable[[int, int | None], None] | None = None,
     keep_sets: bool = True,
     keep_prepared: bool = True,
+    recorded_threshold: bool = False,
 ) -> ReplayResult:
     """Feed every visit's sweep of ``source`` to a new localizer, in the robot's order.
+
+    With ``recorded_threshold`` the threshold is the one the log's run was recorded
+    with (its ``pipemap.run`` settings say it), not ``config``'s. Either way a
+    warning says when the replay's threshold differs from the recorded one: that one
+    chose the probes the robot made and its online decisions.
 
     Each visit is decided as soon as the log has told all of it, and its images are
     then dropped (kept only with ``keep_sets``, for :attr:`ReplayResult.visit_sets`;
@@ -457,7 +491,8 @@ def replay(
     total, once known (``None`` before).
     """
     config = config if config is not None else LocalizerConfig()
+    args = (source, config, progress, keep_sets)
     try:
-        return _Replay(source, config, progress, keep_sets, False, keep_prepared).run()
+        return _Replay(*args, False, keep_prepared, recorded_threshold).run()
     except (_WholeLogNeeded, LogTimeWentBack):
-        return _Replay(source, config, progress, keep_sets, True, keep_prepared).run()
+        return _Replay(*args, True, keep_prepared, recorded_threshold).run()
