@@ -317,22 +317,26 @@ class Localizer:
     def _above_threshold(
         self, matches: list[SetMatch], best: int | None, best_sim: float
     ) -> list[int]:
-        """The paper's decision, with room for the port check: the best candidate if
-        its similarity reaches the threshold, then (only when exits are compared)
-        the other candidates of its pool that reach it too, best first, up to
-        ``verify_candidates`` in all."""
+        """The paper's decision, with room for the port and odometry checks: the best
+        candidate if its similarity reaches the threshold and the dead reckoning
+        allows it, then (only when either check is on) the other candidates of its
+        pool that reach the threshold and that the dead reckoning allows, best
+        first, up to ``verify_candidates`` in all."""
         if best is None or best_sim < self.config.threshold:
             return []
-        if not self.config.port_check:
+        if not self.config.port_check and not self.config.odometry_check:
             return [best]
         exclude = self._excluded()
-        allowed = [i for i in range(len(matches)) if i != exclude]
+        # The odometry check acts here as among the two-view candidates: a junction
+        # farther than the dead reckoning's drift allows is not the visit's.
+        allowed = [i for i in range(len(matches)) if i != exclude and self._odometry.near(i)]
         pool = [i for i in allowed if matches[i].refined] or allowed
         others = sorted(
             (i for i in pool if i != best and matches[i].similarity >= self.config.threshold),
             key=lambda i: (-matches[i].similarity, i),
         )
-        return [best, *others][: self.config.verify_candidates]
+        first = [best] if self._odometry.near(best) else []
+        return [*first, *others][: self.config.verify_candidates]
 
     def _expected_nodes(self) -> list[int]:
         """The junctions the map puts near the robot: the one it expects next and the

@@ -243,6 +243,7 @@ def replay(
     progress: Callable[[int, int | None], None] | None = None,
     keep_images: bool = False,
     keep_prepared: bool = True,
+    recorded_threshold: bool = False,
 ) -> ReplayResult:
     """Rebuild the map of ``log`` with a new localizer, from its ``/robot`` topics only.
 
@@ -255,28 +256,33 @@ def replay(
     its map, not its images (a 400 px sweep is 938 KiB: 2 GB for 2 000 visits);
     ``log.visits()`` gives them again on demand. ``keep_images`` keeps them, for
     ``result.visit_sets``. The visits as the matcher prepared them (83 KiB each, for
-    pair statistics) are kept unless ``keep_prepared`` is false.
+    pair statistics) are kept unless ``keep_prepared`` is false. With
+    ``recorded_threshold`` the threshold is the one the log was recorded with (as
+    ``pipemap replay`` and ``score`` take it without ``--threshold``).
     """
     from pipemap.replay import REPLAY_TOPICS
     from pipemap.replay import replay as _replay
 
     source = _source(log, REPLAY_TOPICS)
-    return _replay(source, config, progress, keep_sets=keep_images, keep_prepared=keep_prepared)
+    return _replay(
+        source, config, progress, keep_images, keep_prepared, recorded_threshold=recorded_threshold
+    )
 
 
 def score(
     log: Log | MessageSource | str | Path,
     config: LocalizerConfig | None = None,
     progress: Callable[[int, int | None], None] | None = None,
+    recorded_threshold: bool = False,
 ) -> ScoreReport:
     """Replay ``log`` and score its map against the log's ground truth (``/truth``);
-    ``progress`` as :func:`replay` takes it. The replay's notes are in
+    ``progress`` and ``recorded_threshold`` as :func:`replay` takes them. The replay's notes are in
     ``report.replay_notes``, what of the truth could not be read in
     ``report.truth_notes``."""
     from pipemap.replay import SCORE_TOPICS
     from pipemap.replay import score as _score
 
-    return _score(_source(log, SCORE_TOPICS), config, progress)
+    return _score(_source(log, SCORE_TOPICS), config, progress, recorded_threshold)
 
 
 def match_image_sets(

@@ -184,6 +184,20 @@ BLOCKED_NAME = "pipemap.blocked"
 _BLOCKED_TEXT = re.compile(r"^pipe blocked: visit (\d+), exit (\S+) rad$")
 
 
+#: The text of the warning a refused probe move leaves in ``/robot/events``
+#: (:data:`pipemap.sim.probe_moves.REFUSED_NOTE`): its kind and visit.
+_REFUSED_TEXT = re.compile(r"^probe (\w+) of visit (\d+) not made: ")
+
+
+def refused_probe(log: schemas.Log) -> tuple[int, str] | None:
+    """The visit id and probe kind of a refused probe move's warning, or ``None``
+    for any other log line."""
+    if log.level != schemas.Log.Level.WARNING:
+        return None
+    found = _REFUSED_TEXT.match(log.message)
+    return None if found is None else (int(found.group(2)), found.group(1))
+
+
 def blocked_message(t_ns: int, visit_id: int, exit_rad: float) -> schemas.Log:
     """The robot gave up the pipe it last left visit ``visit_id``'s junction by, at
     ``exit_rad`` from its arrival heading: a ``/robot/events`` warning named

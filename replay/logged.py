@@ -20,7 +20,7 @@ from google.protobuf.message import DecodeError
 from pipemap.errors import PipemapError
 from pipemap.localizer import IlluminationConfig, ImageSet, normalised
 from pipemap.recorder import LogMessage, Topic
-from pipemap.recorder.messages import IMAGE_FORMATS, blocked_visit, decode_image
+from pipemap.recorder.messages import IMAGE_FORMATS, blocked_visit, decode_image, refused_probe
 from pipemap.recorder.schemas import CompressedImage, Log, NodeEvent, SweepCommand
 from pipemap.replay.source import ordered
 
@@ -333,12 +333,16 @@ class NodeEvents:
         self._scans: dict[int, NodeEvent] = {}
         self._departures: dict[int, list[float]] = {}
         self._given_up: dict[int, int] = {}
+        self._refused: dict[int, list[str]] = {}
         self._undecodable = 0
 
     def feed(self, m: LogMessage) -> int | None:
         """Take the next message; returns the visit it names, if it is a node event
         or a blocked pipe (``None`` for any other message)."""
         if m.topic == Topic.EVENTS:
+            refused = _refused_event(m.data)
+            if refused is not None:
+                self._refused.setdefault(refused[0], []).append(refused[1])
             blocked = _blocked_event(m.data)
             if blocked is not None:
                 self._given_up[blocked] = self._given_up.get(blocked, 0) + 1
@@ -355,6 +359,11 @@ class NodeEvents:
         elif event.kind == NodeEvent.DEPARTURE:
             self._departures.setdefault(event.visit_id, []).append(event.exit_rad)
         return int(event.visit_id)
+
+    def refused(self, visit_id: int) -> list[str]:
+        """The kinds of the probe moves the robot refused at the visit (its log's
+        warnings say so), in the order it refused them."""
+        return list(self._refused.get(visit_id, []))
 
     def visits(self) -> list[int]:
         """The visits with an exit scan or a departure so far, in order."""
@@ -402,6 +411,14 @@ def node_events_of(
         assert exits is not None
         out[visit_id] = exits
     return out
+
+
+def _refused_event(data: bytes) -> tuple[int, str] | None:
+    """The visit id and probe kind of a refused probe move's warning, or ``None``."""
+    try:
+        return refused_probe(Log.FromString(data))
+    except DecodeError:
+        return None
 
 
 def _blocked_event(data: bytes) -> int | None:

@@ -24,8 +24,8 @@ import logging
 import math
 import time
 from collections import deque
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from pipemap.errors import InputError, LogFormatError
@@ -121,6 +121,9 @@ class VisitDecision:
     #: Wall time of the decision in each of its phases (:mod:`localizer.phases`),
     #: seconds; like ``latency_s``, not part of any deterministic output.
     phases_s: Mapping[str, float] = field(default_factory=dict)
+    #: Probes the localizer asked for whose move the robot refused (its rangers found
+    #: a wall within the move; the log's warning says so): not made, not missing.
+    probes_refused: int = 0
 
 
 @dataclass
@@ -172,9 +175,12 @@ class _LoggedProbes:
     """Answers probe requests from the probe sweeps the log holds for one visit (their
     image sets made here, before the decision: they are the camera's, not its work)."""
 
-    def __init__(self, probes: list[LoggedSweep]) -> None:
+    def __init__(self, probes: list[LoggedSweep], refused: Sequence[str] = ()) -> None:
         self.probes = [(sweep.probe, sweep.images) for sweep in probes]
+        self.refused_kinds = list(refused)
         self.not_in_log = 0
+        #: Requests the robot refused to move for (the log's warning says so).
+        self.refused = 0
 
     def probe(self, request: ProbeRequest) -> ImageSet | None:
         for probe, images in self.probes:
@@ -188,7 +194,11 @@ class _LoggedProbes:
                 and math.isclose(left, request.left_m, rel_tol=0.0, abs_tol=_PROBE_MATCH)
             ):
                 return images
-        self.not_in_log += 1
+        if request.kind.value in self.refused_kinds:
+            self.refused_kinds.remove(request.kind.value)
+            self.refused += 1
+        else:
+            self.not_in_log += 1
         return None
 
 
@@ -230,8 +240,11 @@ class _Replay:
         keep_sets: bool,
         whole: bool,
         keep_prepared: bool = False,
+        recorded_threshold: bool = False,
     ) -> None:
         self.source, self.config, self.progress = source, config, progress
+        self.recorded_threshold = recorded_threshold
+        self.threshold_note: str | None = None
         self.keep_sets, self.whole, self.keep_prepared = keep_sets, whole, keep_prepared
         self.visit_prepared: dict[int, PreparedSet] = {}
         self.sweeps = SweepAssembler(source.name)
@@ -298,6 +311,9 @@ class _Replay:
             # A lamp-lit camera's sweeps are normalised (unless the caller says otherwise);
             # the run's settings open the log, before its first sweep.
             self.metadata = _run_settings(self.source)
+            self.config, self.threshold_note = _as_recorded(
+                self.config, self.metadata, self.recorded_threshold
+            )
             lit = lamp_strength(self.metadata) > 0.0
             self.localizer = Localizer(self.config.for_camera(lit), clock=time.perf_counter)
         localizer = self.localizer
@@ -314,7 +330,10 @@ class _Replay:
         odometer = None if scan is None else scan.odometer_m
         position = None if scan is None else scan.position_m
         # The sets are made before the clock starts: the latency is the decision's.
-        images, answers = sweep.images, _LoggedProbes(self.probes.pop(sweep.visit_id, []))
+        images = sweep.images
+        answers = _LoggedProbes(
+            self.probes.pop(sweep.visit_id, []), self.events.refused(sweep.visit_id)
+        )
         start = time.perf_counter()
         decision = localizer.localize(images, answers, exits, odometer, position)
         latency = time.perf_counter() - start
@@ -339,6 +358,7 @@ class _Replay:
                 missing,
                 scan,
                 dict(localizer.last_phases),
+                answers.refused,
             )
         )
         if _LOG.isEnabledFor(logging.DEBUG):
@@ -356,6 +376,14 @@ class _Replay:
             warnings.append(
                 f"{asked} probe sweep(s) asked for are not in the log; those visits were "
                 "decided without them"
+            )
+        if self.threshold_note is not None:
+            warnings.append(f"{name}: {self.threshold_note}")
+        refused = sum(v.probes_refused for v in self.decided)
+        if refused:
+            warnings.append(
+                f"{refused} probe move(s) asked for were refused by the robot (a wall within "
+                "the move, as the log says); those visits were decided without them, as online"
             )
         if self.probes_not_made:
             condition = (self.metadata or {}).get("condition")
@@ -400,6 +428,26 @@ def _check_downsample(source: MessageSource, config: LocalizerConfig) -> None:
         )
 
 
+def _as_recorded(
+    config: LocalizerConfig, run: dict[str, str], recorded: bool
+) -> tuple[LocalizerConfig, str | None]:
+    """``config``, with the threshold of the run's settings ``run`` if ``recorded``;
+    and a note when the threshold then differs from the run's (``None`` when they
+    agree, or the settings do not say)."""
+    try:
+        threshold = float(run["threshold"])
+    except (KeyError, ValueError):
+        return config, None
+    if recorded:
+        config = replace(config, threshold=threshold)
+    if config.threshold == threshold:
+        return config, None
+    return config, (
+        f"replayed at threshold {config.threshold:g}, though recorded at {threshold:g}: its "
+        f"probes were asked for, and its online decisions made, at {threshold:g}"
+    )
+
+
 def _run_settings(source: MessageSource) -> dict[str, str]:
     """The run's ``pipemap.run`` settings, read before the first sweep (the record
     opens the log). Absent, its record was damaged (the reader accepts such a log for
@@ -420,8 +468,14 @@ def replay(
     progress: Callable[[int, int | None], None] | None = None,
     keep_sets: bool = True,
     keep_prepared: bool = True,
+    recorded_threshold: bool = False,
 ) -> ReplayResult:
     """Feed every visit's sweep of ``source`` to a new localizer, in the robot's order.
+
+    With ``recorded_threshold`` the threshold is the one the log's run was recorded
+    with (its ``pipemap.run`` settings say it), not ``config``'s. Either way a
+    warning says when the replay's threshold differs from the recorded one: that one
+    chose the probes the robot made and its online decisions.
 
     Each visit is decided as soon as the log has told all of it, and its images are
     then dropped (kept only with ``keep_sets``, for :attr:`ReplayResult.visit_sets`;
@@ -437,7 +491,8 @@ def replay(
     total, once known (``None`` before).
     """
     config = config if config is not None else LocalizerConfig()
+    args = (source, config, progress, keep_sets)
     try:
-        return _Replay(source, config, progress, keep_sets, False, keep_prepared).run()
+        return _Replay(*args, False, keep_prepared, recorded_threshold).run()
     except (_WholeLogNeeded, LogTimeWentBack):
-        return _Replay(source, config, progress, keep_sets, True, keep_prepared).run()
+        return _Replay(*args, True, keep_prepared, recorded_threshold).run()

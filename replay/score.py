@@ -460,9 +460,12 @@ def score(
     source: MessageSource,
     config: LocalizerConfig | None = None,
     progress: Callable[[int, int | None], None] | None = None,
+    recorded_threshold: bool = False,
 ) -> ScoreReport:
-    """Replay ``source`` and score the result against its truth; ``progress`` as
-    :func:`replay` takes it."""
+    """Replay ``source`` and score the result against its truth; ``progress`` and
+    ``recorded_threshold`` as :func:`replay` takes them."""
     config = config if config is not None else LocalizerConfig()
-    result = replay(source, config, progress, keep_sets=False)
-    return score_replay(result, source, config.threshold, config.fast)
+    result = replay(
+        source, config, progress, keep_sets=False, recorded_threshold=recorded_threshold
+    )
+    return score_replay(result, source, result.localizer.config.threshold, config.fast)

@@ -72,6 +72,13 @@ class ExplorerConfig:
     settle_ns: int = 500_000_000
     settle_tolerance_m: float = 0.003
     settle_clear_deg: float = 80.0
+    #: A re-centring scan whose ranger passed through a wall (a reading nearer than
+    #: ``touch_m`` beside one of nothing; see
+    #: :func:`~pipemap.sim.scan_geometry.through_wall`) backs off ``touch_backoff_m``
+    #: from that wall and scans again, at most ``touch_retries`` times.
+    touch_m: float = 0.01
+    touch_backoff_m: float = 0.03
+    touch_retries: int = 2
     #: A corner whose pipes turn by less than this is centred where their axes cross
     #: (see :func:`~pipemap.sim.scan_geometry.axes_crossing`); a sharper one by its
     #: widest circle alone.

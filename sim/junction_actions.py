@@ -23,6 +23,7 @@ from pipemap.sim.scan_geometry import (
     HALF_WIDTH_M,
     axes_crossing,
     opening_headings,
+    through_wall,
     wall_points,
     widest_centre,
 )
@@ -145,6 +146,19 @@ def recentre(m: Motion, expected: np.ndarray) -> RunStatus | None:
     facing = m.yaw_est
     forward = m.robot.spec.tof_forward_m
     samples = scan_samples(m)
+    for _ in range(c.touch_retries):
+        # The nose swung through a wall: the scan saw out of the junction there. Back
+        # off from that wall and scan again, so no wall is missing from the circle fit.
+        walls = through_wall(samples, m.robot.spec.tof_max_range_m, c.touch_m)
+        if not walls:
+            break
+        away = math.atan2(-sum(math.sin(w) for w in walls), -sum(math.cos(w) for w in walls))
+        m.event("the range scan reached through a wall: backing off to scan again")
+        m.turn_to(away)
+        status = m.straight(c.touch_backoff_m, away)
+        if status is not None:
+            return status
+        samples = scan_samples(m)
     points = wall_points(samples, m.xy_est, forward, c.scan_open_m)
     if len(points) < 8:
         return None

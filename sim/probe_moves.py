@@ -36,7 +36,12 @@ from pipemap.sim.junction_actions import take_sweep
 from pipemap.sim.motion import Motion
 from pipemap.sim.robot import NS_PER_S
 
-__all__ = ["ProbeMoveConfig", "ProbeMover"]
+__all__ = ["REFUSED_NOTE", "ProbeMoveConfig", "ProbeMover"]
+
+#: The warning a refused probe move leaves in the run's events (``/robot/events``);
+#: a replay reads it back (:func:`pipemap.recorder.messages.refused_probe`) to tell
+#: a move the robot refused from a probe sweep missing from the log.
+REFUSED_NOTE = "probe {kind} of visit {visit} not made: {why}"
 
 
 @dataclass(frozen=True)
@@ -77,14 +82,13 @@ class ProbeMover:
         visit = len(m.result.sweeps)
         origin = m.xy_est.copy()
         heading = x.sweep_heading
-        name = f"probe {kind} of visit {visit}"
         distance = math.hypot(forward_m, left_m)
         taken: Sweep | None = None
         if distance >= self.config.min_move_m:
             direction = heading + math.atan2(left_m, forward_m)
             why = self._translate(direction, distance)
             if why is not None:
-                m.event(f"{name} not made: {why}", warning=True)
+                m.event(REFUSED_NOTE.format(kind=kind, visit=visit, why=why), warning=True)
                 self.refused += 1
                 self._return(origin, heading)
                 return None

@@ -22,6 +22,7 @@ __all__ = [
     "axes_crossing",
     "opening_headings",
     "seen",
+    "through_wall",
     "wall_points",
     "widest_centre",
 ]
@@ -133,6 +134,37 @@ def opening_headings(
     if run:
         openings.append(_heading_of(yaws[run], ranges[run], depth))
     return [math.remainder(o, 2.0 * math.pi) for o in openings]
+
+
+def through_wall(
+    samples: list[tuple[float, float]], max_range_m: float, touch_m: float
+) -> list[float]:
+    """Headings where the front ranger passed through a wall: runs of samples that see
+    nothing (``max_range_m``) with a sample nearer than ``touch_m`` among the two on
+    either side (the ranger's noise can lift one of them).
+
+    A robot put down off a junction's centre, where the walls are close (a dead end's
+    cap, the far side of a T), swings its ranger on the nose through a wall as it turns:
+    the reading falls to nothing, jumps to the sensor's limit and falls back. A real
+    pipe's opening is not like that: the walls of its mouth recede, the readings grow
+    on either side of it. Each run's heading is its middle."""
+    n = len(samples)
+    ranges = [r for _, r in samples]
+    out: list[float] = []
+    seen_start: set[int] = set()
+    for i in range(n):
+        if ranges[i] < max_range_m or ranges[i - 1] >= max_range_m or i in seen_start:
+            continue
+        seen_start.add(i)
+        j = i
+        while ranges[(j + 1) % n] >= max_range_m and (j + 1) % n != i:
+            j += 1
+        before = min(ranges[i - 1], ranges[i - 2])
+        after = min(ranges[(j + 1) % n], ranges[(j + 2) % n])
+        if before < touch_m and after < touch_m:
+            yaws = np.unwrap([samples[k % n][0] for k in range(i, j + 1)])
+            out.append(math.remainder(float(yaws[0] + yaws[-1]) / 2.0, 2.0 * math.pi))
+    return out
 
 
 def _heading_of(yaws: np.ndarray, ranges: np.ndarray, depth: float) -> float:

@@ -60,7 +60,12 @@ def test_the_experiment_writes_every_table_and_figure(experiment: Path) -> None:
     for name in FILES:
         assert (experiment / name).stat().st_size > 0, name
     doc = json.loads((experiment / "experiment.json").read_text())
-    assert doc["settings"] == {"resolution_px": 32, "seed": 0, "threshold": 0.36}
+    assert doc["settings"] == {
+        "resolution_px": 32,
+        "seed": 0,
+        "threshold": 0.36,
+        "lighting": "lamp",
+    }
     assert doc["rules"]["paper"]["flags"] == ["--rule", "paper"]
     assert doc["rules"]["default"]["flags"] == []
     assert set(doc["conditions"]) == {"paper", "aligned"}

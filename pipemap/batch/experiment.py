@@ -65,6 +65,9 @@ class ExperimentSettings:
     resolution_px: int = 400
     seed: int = 0
     threshold: float = 0.36
+    #: ``record --lighting``: the robot's lamp (pipemap's default), or every surface
+    #: lit evenly, as the paper's simulation was.
+    lighting: str = "lamp"
 
 
 def paper_spec_text(settings: ExperimentSettings | None = None) -> str:
@@ -76,6 +79,7 @@ def paper_spec_text(settings: ExperimentSettings | None = None) -> str:
         # The autonomous robot explores by the paper's right-hand rule, as published
         # (on this tree the map-driven walk is the same); placed runs ignore it.
         'explore = ["right-hand"]\n'
+        + (f'lighting = ["{s.lighting}"]\n' if s.lighting != "lamp" else "")
     )
     conditions = ", ".join(f'"{c}"' for c in CONDITIONS)
     starts = ", ".join(f'"{x}"' for x in STARTS)

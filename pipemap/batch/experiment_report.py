@@ -80,6 +80,21 @@ def _run_document(run: RunOutcome, threshold: float) -> dict[str, Any]:
     }
 
 
+def _lighting_line(lighting: str) -> str:
+    """How the experiment's runs were lit (``--lighting``)."""
+    if lighting == "even":
+        return (
+            "Every run is evenly lit, as the paper's simulation was (`--lighting even`; "
+            "`pipemap record`'s default is the robot's lamp): the sweeps are compared as "
+            "they are (see docs/lighting.md)."
+        )
+    return (
+        "Every run is lit by the robot's lamp (`pipemap record`'s default lighting; the "
+        "paper's simulation was evenly lit): the localizer normalises the lamp-lit sweeps "
+        "under both rules (see docs/lighting.md)."
+    )
+
+
 def experiment_document(result: ExperimentResult, wall_s: float, version: str) -> dict[str, Any]:
     """Everything the experiment measured, as one JSON-ready object."""
     t = result.settings.threshold
@@ -90,6 +105,7 @@ def experiment_document(result: ExperimentResult, wall_s: float, version: str) -
             "resolution_px": result.settings.resolution_px,
             "seed": result.settings.seed,
             "threshold": t,
+            "lighting": result.settings.lighting,
         },
         "rules": {
             rule: {"flags": list(RULES[rule].flags), "description": RULES[rule].description}
@@ -176,10 +192,7 @@ def _markdown(doc: dict[str, Any]) -> str:
         "In every condition the robot measures each junction's exits with its own range "
         "sensors, placed or autonomous, and its logged node events hold only what it "
         "measured; pipemap's defaults check those exits against the map's ports, the "
-        "paper's rule compares images alone. Every run is lit by the robot's lamp "
-        "(`pipemap record`'s default lighting; the paper's simulation was evenly lit): "
-        "the localizer normalises the lamp-lit sweeps under both rules (see "
-        "docs/lighting.md).",
+        "paper's rule compares images alone. " + _lighting_line(s.get("lighting", "lamp")),
         "",
         "Every table of decisions shows both rules side by side; the pair statistics "
         "(Table 1, Figure 7, the pairs of Table 2) compare sweeps by the similarity alone "

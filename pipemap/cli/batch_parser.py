@@ -73,6 +73,13 @@ def add_experiment(sub: Subparsers) -> None:
         default=PAPER_THRESHOLD,
         help=f"similarity threshold (default {PAPER_THRESHOLD}); see record --threshold",
     )
+    p.add_argument(
+        "--lighting",
+        choices=["lamp", "even"],
+        default="lamp",
+        help="lamp: every run lit by the robot's lamp (default); even: every surface evenly "
+        "lit, as in the paper's simulation (see record --lighting)",
+    )
     add_batch_options(p)
 
 

@@ -7,28 +7,31 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from pipemap.cli.outputs import output_folder
 
-__all__ = ["run_experiment"]
+__all__ = ["experiment_settings", "run_experiment"]
+
+
+def experiment_settings(args: argparse.Namespace) -> Any:
+    """The :class:`pipemap.batch.experiment.ExperimentSettings` of the command's flags
+    (the experiment is a batch: the layer above :mod:`pipemap.api`)."""
+    from pipemap.batch.experiment import ExperimentSettings
+
+    return ExperimentSettings(args.resolution, args.seed, args.threshold, args.lighting)
 
 
 def run_experiment(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> int:
     """Run every run of the experiment on Ray, then write its files."""
     from pipemap import __version__
     from pipemap.batch import BatchOptions, plan_batch, run_batch
-    from pipemap.batch.experiment import (
-        EXPERIMENT_RULES,
-        ExperimentSettings,
-        experiment_result,
-        paper_spec,
-    )
+    from pipemap.batch.experiment import EXPERIMENT_RULES, experiment_result, paper_spec
     from pipemap.batch.experiment_report import FILES, write_experiment
     from pipemap.cli.batch_command import format_duration, progress_printer
 
     folder = Path(args.out)
-    settings = ExperimentSettings(args.resolution, args.seed, args.threshold)
+    settings = experiment_settings(args)
     spec = paper_spec(settings)
     options = BatchOptions(
         address=args.address,

@@ -16,6 +16,7 @@ from pipemap.cli.localizer_options import (
     fast_config,
     hypotheses,
     illumination_setting,
+    odometry_check,
     port_check,
     rule_config,
     two_view_settings,
@@ -104,6 +105,7 @@ def run_map(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -> 
         two_view=two_view,
         verify=verify,
         port_check=port_check(args),
+        odometry_check=odometry_check(args),
         hypotheses=hypotheses(args),
         lamp=illumination_setting(args),
     )

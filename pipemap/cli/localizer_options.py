@@ -41,9 +41,16 @@ _THRESHOLD_HELP = (
 )
 
 
-def add_threshold(p: argparse.ArgumentParser) -> None:
-    """``--threshold``, left ``None`` for :func:`apply_presets` to fill in."""
-    p.add_argument("--threshold", type=arguments.threshold, default=None, help=_THRESHOLD_HELP)
+def add_threshold(p: argparse.ArgumentParser, recorded: bool = False) -> None:
+    """``--threshold``, left ``None`` for :func:`apply_presets` to fill in; ``recorded``:
+    a replay's, whose default is the threshold its log was recorded with."""
+    text = _THRESHOLD_HELP
+    if recorded:
+        text = text.replace(
+            f"default {PAPER_THRESHOLD}",
+            f"default: the one the log was recorded with, else {PAPER_THRESHOLD}",
+        )
+    p.add_argument("--threshold", type=arguments.threshold, default=None, help=text)
 
 
 def apply_presets(args: argparse.Namespace) -> None:
@@ -56,6 +63,8 @@ def apply_presets(args: argparse.Namespace) -> None:
         args.zoom = args.zoom or ROBUST_ZOOMS
         args.highpass = args.highpass or ROBUST_HIGHPASS_FRACTION
         args.baseline = True
+    # A replay takes the threshold its log was recorded with unless one is given.
+    args.threshold_given = args.threshold is not None or args.robust
     if args.threshold is None:
         args.threshold = ROBUST_THRESHOLD if args.robust else PAPER_THRESHOLD
 

@@ -26,11 +26,13 @@ def _add_log(p: argparse.ArgumentParser, several: bool = False) -> None:
         p.add_argument("log", metavar="RUN.mcap", help="a pipemap log")
 
 
-def _add_replay_options(p: argparse.ArgumentParser, several: bool = False) -> None:
+def _add_replay_options(
+    p: argparse.ArgumentParser, several: bool = False, recorded: bool = True
+) -> None:
     """The log (``several``: logs) and the localizer that replays it: shared by
-    replay, score and view."""
+    replay, score and view (``recorded``: the threshold defaults to the log's)."""
     _add_log(p, several)
-    add_threshold(p)
+    add_threshold(p, recorded)
     p.add_argument("--no-active-vision", action="store_true", help="never ask for probe sweeps")
     add_similarity_options(p)
     add_rule_options(p)
@@ -100,7 +102,7 @@ def add_view(sub: Subparsers) -> None:
         "sensor signals, controller states and the topological map as it grows, with "
         "each decision. Opens the viewer, or with --save writes a recording file.",
     )
-    _add_replay_options(p)
+    _add_replay_options(p, recorded=False)
     arguments.add_output(
         p,
         "--save",

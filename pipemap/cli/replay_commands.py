@@ -114,7 +114,8 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     config = localizer_config(args)
     # Read as the replay goes: it holds the map, not the log.
     source = StreamSource(Path(args.log), REPLAY_TOPICS)
-    result = api.replay(source, config, progress_printer(err), keep_prepared=False)
+    recorded = not getattr(args, "threshold_given", True)
+    result = api.replay(source, config, progress_printer(err), False, False, recorded)
     report_damage(args.log, source.contents, err)
     for warning in result.warnings:
         err.write(f"pipemap: note: {warning}\n")
@@ -128,7 +129,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
             f"junctions, map written to {target}\n"
         )
     if results_log is not None:
-        api.save_results_log(result, results_log, config.threshold)
+        api.save_results_log(result, results_log, result.localizer.config.threshold)
     if graphml is not None:
         import networkx as nx  # 0.09 s to import: only for GraphML
 
@@ -159,7 +160,8 @@ def run_score(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) -
     # Every log is opened before the first is replayed: a missing one is found first.
     sources = [StreamSource(Path(log), SCORE_TOPICS) for log in logs]
     pairs = zip(logs, sources, strict=True)
-    reports = [_score_log(log, source, config, err) for log, source in pairs]
+    recorded = not getattr(args, "threshold_given", True)
+    reports = [_score_log(log, source, config, recorded, err) for log, source in pairs]
     if folder is not None:
         _save_results(folder, reports[0])
     if args.json:
@@ -192,11 +194,12 @@ def _save_results(folder: Path, report: Any) -> None:
         raise
 
 
-def _score_log(log: str, source: Any, config: Any, err: TextIO) -> Any:
-    """The score report of one log, its damage and the replay's notes said on ``err``."""
+def _score_log(log: str, source: Any, config: Any, recorded: bool, err: TextIO) -> Any:
+    """The score report of one log (``recorded``: at the threshold it was recorded
+    with), its damage and the replay's notes said on ``err``."""
     from pipemap import api
 
-    report = api.score(source, config, progress_printer(err))
+    report = api.score(source, config, progress_printer(err), recorded)
     report_damage(log, source.contents, err)
     for warning in report.replay_notes:
         err.write(f"pipemap: note: {warning}\n")

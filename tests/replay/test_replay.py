@@ -16,6 +16,7 @@ from mcap.writer import Writer as McapWriter
 
 from pipemap.localizer import LocalizerConfig, ProbeKind, ProbeRequest, dumps_document
 from pipemap.recorder import METADATA_RUN, LogMessage, LogWriter, Topic, read_log, schemas
+from pipemap.recorder.messages import refused_probe
 from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay import FileSource, LoggedSweep, replay
 from pipemap.replay import replayer as replayer_module
@@ -110,8 +111,9 @@ def test_a_cut_log_replays_its_complete_part(recorded_run: Path, tmp_path: Path)
 
 
 def test_replay_settings_change_the_decisions(recorded_run: Path) -> None:
-    # Under the paper's rule the threshold decides (and exits are not compared).
-    paper = ("--threshold", "-1", "--no-verify", "--no-port-check")
+    # Under the paper's rule the threshold decides (exits and dead reckoning are
+    # not compared).
+    paper = ("--threshold", "-1", "--no-verify", "--no-port-check", "--no-odometry-check")
     done = pipemap("replay", str(recorded_run), *paper, "--allow-repeat")
     assert done.returncode == 0, done.stderr
     visits = json.loads(done.stdout)["visits"]
@@ -377,6 +379,57 @@ def test_the_latency_clock_times_the_decision_not_unpacking_the_images(
         assert not (timing and event == "set"), "a set was made while the clock ran"
 
 
+def _refusal(m: LogMessage) -> bool:
+    """Whether ``m`` is the warning of a probe move the robot refused."""
+    return m.topic == Topic.EVENTS and refused_probe(schemas.Log.FromString(m.data)) is not None
+
+
+def test_a_refused_probe_move_is_reported_as_refused_not_missing() -> None:
+    """The stored autonomous run asked for probes at visit 3 whose moves the robot
+    refused (a wall within the move: three warnings in its log). The replay counts
+    them as refused, not as missing from the log; without those warnings the same
+    requests are gaps in the log."""
+    from pipemap.replay.source import MemorySource
+
+    contents = read_log(RECORDINGS / "paper_autonomous.mcap")
+    run = dict(contents.metadata[METADATA_RUN])
+    messages = list(contents.messages)
+    result = replay(MemorySource(messages, run, "paper_autonomous.mcap"))
+    refused = {v.visit_id: v.probes_refused for v in result.visits if v.probes_refused}
+    assert refused == {3: 3}
+    assert sum(v.probes_not_in_log for v in result.visits) == 0
+    notes = [w for w in result.warnings if "probe" in w]
+    assert notes == [
+        "3 probe move(s) asked for were refused by the robot (a wall within the move, as "
+        "the log says); those visits were decided without them, as online"
+    ]
+    unanswered = [p for v in result.visits if v.visit_id == 3 for p in v.decision.probes]
+    assert sorted(p.request.kind.value for p in unanswered if p.similarity is None) == [
+        "forward",
+        "left",
+        "right",
+    ]
+    # The same log without the robot's warnings: the requests are missing from it.
+    bare = [m for m in messages if not _refusal(m)]
+    result = replay(MemorySource(bare, run, "paper_autonomous.mcap"))
+    assert sum(v.probes_refused for v in result.visits) == 0
+    assert sum(v.probes_not_in_log for v in result.visits) == 3
+    assert [w for w in result.warnings if "probe" in w] == [
+        "3 probe sweep(s) asked for are not in the log; those visits were decided without them"
+    ]
+
+
+def test_the_refusal_warning_reads_back() -> None:
+    """The robot's note (:data:`sim.probe_moves.REFUSED_NOTE`) is what the replay reads."""
+    from pipemap.recorder.messages import log_message
+    from pipemap.sim.probe_moves import REFUSED_NOTE
+
+    text = REFUSED_NOTE.format(kind="left", visit=12, why="the wall 0.024 m ahead")
+    assert refused_probe(log_message(0, text, warning=True)) == (12, "left")
+    assert refused_probe(log_message(0, text, warning=False)) is None
+    assert refused_probe(log_message(0, "probe sweep 4 (rotate) of visit 3")) is None
+
+
 @pytest.mark.parametrize(
     ("condition", "probe_moves", "makes_probes"),
     [
@@ -394,7 +447,9 @@ def test_a_missing_probe_is_a_gap_only_where_the_robot_makes_probe_moves(
     0.36). Said to be run with its probe moves off, the replay says they were not
     made, not that the log lacks them, and no decision is marked as missing any. The
     same messages of an autonomous robot that makes its moves, an ``active`` run or
-    one that does not say lack them: then they are missing."""
+    one that does not say lack them: then they are missing. (The log's warnings of the
+    moves the robot refused are left out here: those are refused, not missing; see
+    the test after this one.)"""
     from pipemap.replay.source import MemorySource
 
     contents = read_log(RECORDINGS / "paper_autonomous.mcap")
@@ -404,7 +459,9 @@ def test_a_missing_probe_is_a_gap_only_where_the_robot_makes_probe_moves(
         run["condition"] = condition
     if probe_moves is not None:
         run["probe_moves"] = probe_moves
-    source = MemorySource(list(contents.messages), run, "paper_autonomous.mcap")
+    kept = [m for m in contents.messages if not _refusal(m)]
+    assert len(kept) < len(contents.messages)
+    source = MemorySource(kept, run, "paper_autonomous.mcap")
     result = replay(source, LocalizerConfig(threshold=0.6))
     unanswered = sum(p.similarity is None for v in result.visits for p in v.decision.probes)
     assert unanswered > 0
@@ -412,6 +469,8 @@ def test_a_missing_probe_is_a_gap_only_where_the_robot_makes_probe_moves(
     gap = f"{unanswered} probe sweep(s) asked for are not in the log"
     not_made = f"active vision asked for {unanswered} probe sweep(s); in condition 'autonomous'"
     assert missing == (unanswered if makes_probes else 0)
-    notes = [w for w in result.warnings if "probe" in w]
+    # Replayed at another threshold than recorded (0.36): a note says so.
+    assert sum("though recorded at 0.36" in w for w in result.warnings) == 1
+    notes = [w for w in result.warnings if "probe" in w and "recorded at" not in w]
     assert len(notes) == 1
     assert notes[0].startswith(gap if makes_probes else not_made)

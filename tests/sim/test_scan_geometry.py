@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pipemap.sim.controller import ExplorerConfig
-from pipemap.sim.scan_geometry import axes_crossing, opening_headings
+from pipemap.sim.scan_geometry import axes_crossing, opening_headings, through_wall
 
 
 def _corner_scan(
@@ -82,3 +82,34 @@ def test_an_exit_heading_is_where_the_scan_sees_deepest() -> None:
     (deep,) = opening_headings(samples, config.scan_open_m, config.exit_depth_fraction)
     assert abs(lopsided - 0.6) < 0.02  # the middle of the whole opening
     assert abs(deep - 0.8) < 0.02  # the pipe's axis
+
+
+def _ramp(n: int, lo: float, hi: float) -> list[float]:
+    return [float(r) for r in np.linspace(lo, hi, n)]
+
+
+def test_a_ranger_through_a_wall_is_told_from_an_opening() -> None:
+    # Samples every 3 degrees: a pipe's mouth at 90 degrees (the walls recede, then
+    # nothing in range), and at 250 degrees the ranger through the cap: the reading
+    # falls to nothing, jumps to the limit and comes back from nothing.
+    ranges = [0.03] * 120
+    ranges[20:26] = _ramp(6, 0.05, 0.6)
+    ranges[26:32] = [1.2] * 6  # down the pipe: nothing in range
+    ranges[32:38] = _ramp(6, 0.6, 0.05)
+    ranges[76:78] = [0.004, 0.0]
+    ranges[78:90] = [1.2] * 12
+    ranges[90:92] = [0.012, 0.002]  # the ranger's noise lifts one of the two
+    samples = [(math.radians(3.0 * i), r) for i, r in enumerate(ranges)]
+    walls = through_wall(samples, 1.2, 0.01)
+    assert len(walls) == 1
+    assert abs(math.remainder(walls[0] - math.radians(3.0 * 83.5), 2 * math.pi)) < 1e-9
+    # Both are openings to the exit scan alone.
+    assert len(opening_headings(samples, 0.25)) == 2
+    # A run across the end of the scan is one run.
+    rolled = samples[85:] + samples[:85]
+    assert len(through_wall(rolled, 1.2, 0.01)) == 1
+    # A mouth whose walls recede is never a wall.
+    ranges[76:78] = [0.03, 0.03]
+    assert (
+        through_wall([(y, r) for (y, _), r in zip(samples, ranges, strict=True)], 1.2, 0.01) == []
+    )
