@@ -22,6 +22,13 @@ The weight of a hypothesis is the product of the likelihoods of what it says:
   time by more than the odometry allows weighs by a Gaussian in the difference
   (sigma ``LENGTH_SIGMA_M`` plus ``LENGTH_SIGMA_PER_M`` of the pipe's length).
 
+* **Planarity**: a buried network at one depth is planar, and the ports' clockwise
+  order at every junction is a rotation system: a map whose graph, with each
+  junction's pipes in that order, cannot be drawn in the plane without crossings
+  (Euler's formula over its faces, :func:`embeds_in_plane`) is dropped while another
+  can be (Tully, Kantor and Choset prune their tree of edge-ordered graphs by the
+  same test).
+
 Bounded: at most ``limit`` hypotheses live (the heaviest; ties keep the older), and
 one whose weight falls below ``prune_ratio`` of the best is dropped. A visit whose
 hypotheses disagree on its junction is *open*; it is *settled* when the survivors
@@ -42,6 +49,7 @@ __all__ = [
     "Branch",
     "Hypotheses",
     "Hypothesis",
+    "embeds_in_plane",
     "port_log_likelihood",
 ]
 
@@ -121,6 +129,11 @@ class Hypotheses:
         return self._prune(grown)
 
     def _prune(self, grown: list[Hypothesis]) -> tuple[tuple[int, int], ...]:
+        if len(grown) > 1:
+            # A map that cannot be drawn in the plane is dropped, unless none can (the
+            # network is then not what the rule assumes, and the weights decide).
+            planar = [h for h in grown if embeds_in_plane(h.map)]
+            grown = planar or grown
         best = max(h.log_weight for h in grown)
         # Stable: the hypothesis that came first (the best ranked branch) wins ties.
         kept = sorted(
@@ -162,6 +175,43 @@ class Hypotheses:
         """The next visit does not follow the last, in every hypothesis."""
         for h in self.live:
             h.map.new_traversal()
+
+
+def embeds_in_plane(topomap: TopoMap) -> bool:
+    """Whether ``topomap``'s graph, with every junction's pipes in the clockwise order
+    of its ports, is a plane drawing: Euler's formula (V - E + F = 2 in every
+    component) holds over the faces its rotation system traces. A port with no pipe
+    known yet is a pipe to a dead end of its own, which changes nothing. Each pipe is
+    drawn through two points of its own, so loops and parallel pipes need no special
+    case. A map without ports says nothing of the order: ``True``."""
+    import networkx as nx  # loaded only when maps compete
+
+    if not topomap.has_ports or any(e.u_port is None for e in topomap.edges()):
+        return True
+    ends: dict[tuple[int, int | None], tuple[str, int, int]] = {}
+    for e in topomap.edges():
+        ends[(e.u, e.u_port)] = ("pipe", e.label, 0)
+        ends[(e.v, e.v_port)] = ("pipe", e.label, 1)
+    embedding = nx.PlanarEmbedding()
+    for e in topomap.edges():
+        a, b = ("pipe", e.label, 0), ("pipe", e.label, 1)
+        embedding.add_half_edge(a, b)
+        embedding.add_half_edge(a, ("node", e.u), ccw=b)
+        embedding.add_half_edge(b, a)
+        embedding.add_half_edge(b, ("node", e.v), ccw=a)
+    for node in range(topomap.node_count):
+        before = None
+        for port in range(len(topomap.ports(node) or ())):
+            end = ends.get((node, port), ("open", node, port))
+            if end[0] == "open":
+                embedding.add_half_edge(end, ("node", node))
+            embedding.add_half_edge(("node", node), end, ccw=before)
+            before = end
+    try:
+        embedding.check_structure()
+    except nx.NetworkXException:
+        return False
+    return True
 
 
 def port_log_likelihood(ports: PortMatch | None, tolerance_rad: float) -> float:
