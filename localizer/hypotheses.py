@@ -181,37 +181,45 @@ def embeds_in_plane(topomap: TopoMap) -> bool:
     """Whether ``topomap``'s graph, with every junction's pipes in the clockwise order
     of its ports, is a plane drawing: Euler's formula (V - E + F = 2 in every
     component) holds over the faces its rotation system traces. A port with no pipe
-    known yet is a pipe to a dead end of its own, which changes nothing. Each pipe is
-    drawn through two points of its own, so loops and parallel pipes need no special
-    case. A map without ports says nothing of the order: ``True``."""
-    import networkx as nx  # loaded only when maps compete
-
-    if not topomap.has_ports or any(e.u_port is None for e in topomap.edges()):
+    known yet leads to a dead end of its own, which changes no face and is left out.
+    Loops and parallel pipes are traced like any other. A map without ports says
+    nothing of the order: ``True``."""
+    edges = topomap.edges()
+    if not topomap.has_ports or any(e.u_port is None or e.v_port is None for e in edges):
         return True
-    ends: dict[tuple[int, int | None], tuple[str, int, int]] = {}
-    for e in topomap.edges():
-        ends[(e.u, e.u_port)] = ("pipe", e.label, 0)
-        ends[(e.v, e.v_port)] = ("pipe", e.label, 1)
-    embedding = nx.PlanarEmbedding()
-    for e in topomap.edges():
-        a, b = ("pipe", e.label, 0), ("pipe", e.label, 1)
-        embedding.add_half_edge(a, b)
-        embedding.add_half_edge(a, ("node", e.u), ccw=b)
-        embedding.add_half_edge(b, a)
-        embedding.add_half_edge(b, ("node", e.v), ccw=a)
+    # A dart is a pipe end (node, port); its pipe's other end is its reverse.
+    reverse: dict[tuple[int, int | None], tuple[int, int | None]] = {}
+    for e in edges:
+        reverse[(e.u, e.u_port)] = (e.v, e.v_port)
+        reverse[(e.v, e.v_port)] = (e.u, e.u_port)
+    # The next pipe end clockwise at the same node, skipping ports with no pipe.
+    turn: dict[tuple[int, int | None], tuple[int, int | None]] = {}
     for node in range(topomap.node_count):
-        before = None
-        for port in range(len(topomap.ports(node) or ())):
-            end = ends.get((node, port), ("open", node, port))
-            if end[0] == "open":
-                embedding.add_half_edge(end, ("node", node))
-            embedding.add_half_edge(("node", node), end, ccw=before)
-            before = end
-    try:
-        embedding.check_structure()
-    except nx.NetworkXException:
-        return False
-    return True
+        darts = [(node, p) for p in range(len(topomap.ports(node) or ())) if (node, p) in reverse]
+        for k, dart in enumerate(darts):
+            turn[dart] = darts[(k + 1) % len(darts)]
+    faces = 0
+    seen: set[tuple[int, int | None]] = set()
+    for dart in reverse:
+        if dart in seen:
+            continue
+        faces += 1
+        while dart not in seen:  # a face: across the pipe, then the next pipe there
+            seen.add(dart)
+            dart = turn[reverse[dart]]
+    # Components of the junctions that have a pipe (union-find over the pipes).
+    parent = {node: node for node, _ in reverse}
+
+    def root(node: int) -> int:
+        while parent[node] != node:
+            parent[node] = parent[parent[node]]
+            node = parent[node]
+        return node
+
+    for e in edges:
+        parent[root(e.u)] = root(e.v)
+    components = len({root(node) for node in parent})
+    return len(parent) - len(edges) + faces == 2 * components
 
 
 def port_log_likelihood(ports: PortMatch | None, tolerance_rad: float) -> float:
