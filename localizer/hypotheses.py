@@ -195,9 +195,11 @@ def embeds_in_plane(topomap: TopoMap) -> bool:
     # The next pipe end clockwise at the same node, skipping ports with no pipe.
     turn: dict[tuple[int, int | None], tuple[int, int | None]] = {}
     for node in range(topomap.node_count):
-        darts = [(node, p) for p in range(len(topomap.ports(node) or ())) if (node, p) in reverse]
-        for k, dart in enumerate(darts):
-            turn[dart] = darts[(k + 1) % len(darts)]
+        ends: list[tuple[int, int | None]] = [
+            (node, p) for p in range(len(topomap.ports(node) or ())) if (node, p) in reverse
+        ]
+        for k, end in enumerate(ends):
+            turn[end] = ends[(k + 1) % len(ends)]
     faces = 0
     seen: set[tuple[int, int | None]] = set()
     for dart in reverse:

@@ -18,6 +18,7 @@ from pipemap.localizer import (
     TopoMap,
     map_document,
 )
+from pipemap.localizer.explore import MapExplorer, telling_exit
 from pipemap.localizer.hypotheses import Branch, Hypotheses, embeds_in_plane
 from tests.conftest import PaperSet
 
@@ -226,3 +227,27 @@ def test_a_map_that_cannot_be_drawn_in_the_plane_is_dropped() -> None:
     hyp.visit([Branch(0, 3, exits), Branch(1, 3, exits)], None, None)
     assert len(hyp.live) == 1 and hyp.leader.map.visits[-1] == 1
     assert all(r.conflict is None for r in hyp.leader.map.visit_records)
+
+
+def test_the_explorer_drives_an_exit_that_one_map_cannot_take(
+    paper_sets: dict[str, PaperSet],
+) -> None:
+    # At the deferred revisit (A or B), exit 0 is A's right pipe in one map (to X's
+    # back port) and B's right pipe in the other (to Z's): each far end is joined to
+    # the other twin in the other map, so arriving either way drops a map. The plain
+    # explorer takes the right-most untraversed port instead (port 0).
+    loc, d = _run(LocalizerConfig(), paper_sets, back_to_x=False)
+    plain = MapExplorer().step(loc.map, d[4], 0.0, 0.0, 4.5)
+    told = MapExplorer(rivals=loc.hypothesis_exits).step(loc.map, d[4], 0.0, 0.0, 4.5)
+    assert telling_exit(loc.hypothesis_exits()) == 0
+    assert d[4].exit_ports is not None and told.port == d[4].exit_ports[0] != plain.port
+    assert "cannot take" in told.notes[-1]
+    # Driven (B's right pipe, 1 m, into Z as the first time): A's map would join Z's
+    # pipe end twice. The revisit is settled as B, and the map is right.
+    loc.depart(Y[0])
+    arrived = loc.localize(paper_sets["10"].images, exits_rad=CROSS, odometer_m=5.5)
+    assert arrived.node == 3 and arrived.settled == ((4, 2),)
+    assert loc.map.visits == (0, 1, 2, 3, 2, 3) and loc.hypotheses_alive == 1
+    assert all(v.conflict is None for v in loc.map.visit_records)
+    # One map: nothing to tell apart.
+    assert telling_exit(loc.hypothesis_exits()) is None
