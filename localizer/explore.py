@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -48,7 +49,19 @@ from pipemap.localizer.decision import Decision
 from pipemap.localizer.routes import RouteStep, describe_step, nearest_route, plan_route
 from pipemap.localizer.topomap import TopoMap
 
-__all__ = ["ExploreConfig", "ExploreEnd", "ExploreStep", "MapExplorer", "RouteFollower", "Planner"]
+__all__ = [
+    "ExploreConfig",
+    "ExploreEnd",
+    "ExploreStep",
+    "MapExplorer",
+    "Planner",
+    "RouteFollower",
+    "telling_exit",
+]
+
+#: Each live map with the port of each exit of the last visit in it
+#: (``Localizer.hypothesis_exits``).
+RivalMaps = Sequence[tuple[TopoMap, tuple[int, ...] | None]]
 
 
 class Planner(Protocol):
@@ -128,6 +141,11 @@ class MapExplorer:
     _positions: dict[int, tuple[float, float]] = field(default_factory=dict)
     _expected: tuple[int, int | None] | None = None
     _goal: int | None = None
+    #: The live maps (``Localizer.hypothesis_exits``): while more than one lives, an
+    #: exit that one of them cannot take the outcome of goes first (:func:`telling_exit`).
+    rivals: Callable[[], RivalMaps] | None = None
+    #: The (node, port) of the leader's map already driven to tell maps apart.
+    _told: set[tuple[int, int]] = field(default_factory=set)
 
     def _tolerance_m(self, odometer_m: float) -> float:
         c = self.config
@@ -220,6 +238,13 @@ class MapExplorer:
             self.inconsistencies.append(text)
             notes.append(f"map inconsistency {len(self.inconsistencies)}: {text}")
             return ExploreStep(notes=tuple(notes))
+        telling = None if self.rivals is None else telling_exit(self.rivals())
+        if telling is not None and (node, decision.exit_ports[telling]) not in self._told:
+            port = decision.exit_ports[telling]
+            self._told.add((node, port))
+            self._goal, self._expected = None, None  # the maps disagree where it leads
+            notes.append(f"port {port}: one of the maps alive cannot take where it leads")
+            return ExploreStep(port=port, notes=tuple(notes))
         here = topomap.untraversed(node)
         if here and not self.explored:
             self._goal = None
@@ -270,6 +295,40 @@ class MapExplorer:
         assert exits is not None and exit_ports is not None
         angle = {p: math.remainder(exits[exit_ports.index(p)], 2.0 * math.pi) for p in ports}
         return min(ports, key=lambda p: (angle[p], p))
+
+
+def telling_exit(maps: RivalMaps) -> int | None:
+    """The first exit of the last visit whose outcome one of the live ``maps`` cannot
+    take, or ``None``: a map says where the exit's pipe leads (a junction's pipe end)
+    and another has that pipe end joined to some other pipe. Arriving there would be
+    a port conflict in the other map (:mod:`localizer.hypotheses` drops it); arriving
+    elsewhere, one in the first. A far end that differs only in which look-alike it
+    is tells nothing, and is not chosen. One map, or exits not on every map's ports:
+    ``None``."""
+    if len(maps) < 2 or any(exits is None for _, exits in maps):
+        return None
+    counts = {len(exits) for _, exits in maps if exits is not None}
+    if len(counts) != 1:
+        return None
+    for index in range(counts.pop()):
+        ends = []
+        for topomap, exits in maps:
+            assert exits is not None
+            ends.append((topomap, topomap.visits[-1], exits[index]))
+        if any(m.is_blocked(node, port) for m, node, port in ends):
+            continue
+        for m, node, port in ends:
+            edge = m.edge_at(node, port)
+            if edge is None:
+                continue
+            far = edge.other(node, port)
+            if far[1] is None:
+                continue
+            for other, o_node, o_port in ends:
+                there = other.edge_at(far[0], far[1])
+                if there is not None and there.other(*far) != (o_node, o_port):
+                    return index
+    return None
 
 
 @dataclass

@@ -22,6 +22,13 @@ The weight of a hypothesis is the product of the likelihoods of what it says:
   time by more than the odometry allows weighs by a Gaussian in the difference
   (sigma ``LENGTH_SIGMA_M`` plus ``LENGTH_SIGMA_PER_M`` of the pipe's length).
 
+* **Planarity**: a buried network at one depth is planar, and the ports' clockwise
+  order at every junction is a rotation system: a map whose graph, with each
+  junction's pipes in that order, cannot be drawn in the plane without crossings
+  (Euler's formula over its faces, :func:`embeds_in_plane`) is dropped while another
+  can be (Tully, Kantor and Choset prune their tree of edge-ordered graphs by the
+  same test).
+
 Bounded: at most ``limit`` hypotheses live (the heaviest; ties keep the older), and
 one whose weight falls below ``prune_ratio`` of the best is dropped. A visit whose
 hypotheses disagree on its junction is *open*; it is *settled* when the survivors
@@ -42,6 +49,7 @@ __all__ = [
     "Branch",
     "Hypotheses",
     "Hypothesis",
+    "embeds_in_plane",
     "port_log_likelihood",
 ]
 
@@ -121,6 +129,11 @@ class Hypotheses:
         return self._prune(grown)
 
     def _prune(self, grown: list[Hypothesis]) -> tuple[tuple[int, int], ...]:
+        if len(grown) > 1:
+            # A map that cannot be drawn in the plane is dropped, unless none can (the
+            # network is then not what the rule assumes, and the weights decide).
+            planar = [h for h in grown if embeds_in_plane(h.map)]
+            grown = planar or grown
         best = max(h.log_weight for h in grown)
         # Stable: the hypothesis that came first (the best ranked branch) wins ties.
         kept = sorted(
@@ -163,6 +176,53 @@ class Hypotheses:
         """The next visit does not follow the last, in every hypothesis."""
         for h in self.live:
             h.map.new_traversal()
+
+
+def embeds_in_plane(topomap: TopoMap) -> bool:
+    """Whether ``topomap``'s graph, with every junction's pipes in the clockwise order
+    of its ports, is a plane drawing: Euler's formula (V - E + F = 2 in every
+    component) holds over the faces its rotation system traces. A port with no pipe
+    known yet leads to a dead end of its own, which changes no face and is left out.
+    Loops and parallel pipes are traced like any other. A map without ports says
+    nothing of the order: ``True``."""
+    edges = topomap.edges()
+    if not topomap.has_ports or any(e.u_port is None or e.v_port is None for e in edges):
+        return True
+    # A dart is a pipe end (node, port); its pipe's other end is its reverse.
+    reverse: dict[tuple[int, int | None], tuple[int, int | None]] = {}
+    for e in edges:
+        reverse[(e.u, e.u_port)] = (e.v, e.v_port)
+        reverse[(e.v, e.v_port)] = (e.u, e.u_port)
+    # The next pipe end clockwise at the same node, skipping ports with no pipe.
+    turn: dict[tuple[int, int | None], tuple[int, int | None]] = {}
+    for node in range(topomap.node_count):
+        ends: list[tuple[int, int | None]] = [
+            (node, p) for p in range(len(topomap.ports(node) or ())) if (node, p) in reverse
+        ]
+        for k, end in enumerate(ends):
+            turn[end] = ends[(k + 1) % len(ends)]
+    faces = 0
+    seen: set[tuple[int, int | None]] = set()
+    for dart in reverse:
+        if dart in seen:
+            continue
+        faces += 1
+        while dart not in seen:  # a face: across the pipe, then the next pipe there
+            seen.add(dart)
+            dart = turn[reverse[dart]]
+    # Components of the junctions that have a pipe (union-find over the pipes).
+    parent = {node: node for node, _ in reverse}
+
+    def root(node: int) -> int:
+        while parent[node] != node:
+            parent[node] = parent[parent[node]]
+            node = parent[node]
+        return node
+
+    for e in edges:
+        parent[root(e.u)] = root(e.v)
+    components = len({root(node) for node in parent})
+    return len(parent) - len(edges) + faces == 2 * components
 
 
 def port_log_likelihood(ports: PortMatch | None, tolerance_rad: float) -> float:

@@ -120,6 +120,11 @@ class Localizer:
         """The number of live hypotheses (maps)."""
         return len(self._hypotheses.live)
 
+    def hypothesis_exits(self) -> tuple[tuple[TopoMap, tuple[int, ...] | None], ...]:
+        """Each live map, heaviest first, with the port of each exit of the last visit
+        in it (what the explorer tells maps apart by)."""
+        return tuple((h.map, h.exit_ports) for h in self._hypotheses.live)
+
     @property
     def known_count(self) -> int:
         """Number of junctions known so far."""

@@ -340,4 +340,11 @@ def decision_message(
     if decision.arrival_port is not None:
         message.arrival_port = decision.arrival_port
     message.rejected.extend(c for c, _ in decision.rejected)
+    # Competing maps: set only where there were several, so that a run whose maps
+    # never branch logs the very bytes it did before these fields existed.
+    if decision.hypotheses != 1:
+        message.hypotheses = decision.hypotheses
+    message.deferred.extend(decision.deferred)
+    for visit, node in decision.settled:
+        message.settled.add(visit=visit, node=node)
     return message

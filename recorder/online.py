@@ -200,7 +200,9 @@ def make_policy(
     """The controller's policy for ``explore``."""
     if explore is Explore.RIGHT_HAND:
         return RightHandPolicy(start_radius_m, drift_per_m)
-    return MapPolicy(online, MapExplorer(config if config is not None else ExploreConfig()))
+    explorer = MapExplorer(config if config is not None else ExploreConfig())
+    explorer.rivals = online.localizer.hypothesis_exits
+    return MapPolicy(online, explorer)
 
 
 def drive_route(

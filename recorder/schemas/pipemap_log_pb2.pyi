@@ -151,7 +151,7 @@ class ProbeResult(_message.Message):
     def __init__(self, kind: _Optional[str] = ..., similarity: _Optional[float] = ..., improved: bool = ...) -> None: ...
 
 class Decision(_message.Message):
-    __slots__ = ("time_ns", "visit_id", "node", "known", "candidate", "similarity", "margin", "image_shift", "pixel_shift", "rotation_rad", "rotation_pinhole_rad", "probes", "threshold", "exit_ports", "arrival_port", "rejected")
+    __slots__ = ("time_ns", "visit_id", "node", "known", "candidate", "similarity", "margin", "image_shift", "pixel_shift", "rotation_rad", "rotation_pinhole_rad", "probes", "threshold", "exit_ports", "arrival_port", "rejected", "hypotheses", "deferred", "settled")
     TIME_NS_FIELD_NUMBER: _ClassVar[int]
     VISIT_ID_FIELD_NUMBER: _ClassVar[int]
     NODE_FIELD_NUMBER: _ClassVar[int]
@@ -168,6 +168,9 @@ class Decision(_message.Message):
     EXIT_PORTS_FIELD_NUMBER: _ClassVar[int]
     ARRIVAL_PORT_FIELD_NUMBER: _ClassVar[int]
     REJECTED_FIELD_NUMBER: _ClassVar[int]
+    HYPOTHESES_FIELD_NUMBER: _ClassVar[int]
+    DEFERRED_FIELD_NUMBER: _ClassVar[int]
+    SETTLED_FIELD_NUMBER: _ClassVar[int]
     time_ns: int
     visit_id: int
     node: int
@@ -184,7 +187,18 @@ class Decision(_message.Message):
     exit_ports: _containers.RepeatedScalarFieldContainer[int]
     arrival_port: int
     rejected: _containers.RepeatedScalarFieldContainer[int]
-    def __init__(self, time_ns: _Optional[int] = ..., visit_id: _Optional[int] = ..., node: _Optional[int] = ..., known: bool = ..., candidate: _Optional[int] = ..., similarity: _Optional[float] = ..., margin: _Optional[float] = ..., image_shift: _Optional[int] = ..., pixel_shift: _Optional[float] = ..., rotation_rad: _Optional[float] = ..., rotation_pinhole_rad: _Optional[float] = ..., probes: _Optional[_Iterable[_Union[ProbeResult, _Mapping]]] = ..., threshold: _Optional[float] = ..., exit_ports: _Optional[_Iterable[int]] = ..., arrival_port: _Optional[int] = ..., rejected: _Optional[_Iterable[int]] = ...) -> None: ...
+    hypotheses: int
+    deferred: _containers.RepeatedScalarFieldContainer[int]
+    settled: _containers.RepeatedCompositeFieldContainer[SettledVisit]
+    def __init__(self, time_ns: _Optional[int] = ..., visit_id: _Optional[int] = ..., node: _Optional[int] = ..., known: bool = ..., candidate: _Optional[int] = ..., similarity: _Optional[float] = ..., margin: _Optional[float] = ..., image_shift: _Optional[int] = ..., pixel_shift: _Optional[float] = ..., rotation_rad: _Optional[float] = ..., rotation_pinhole_rad: _Optional[float] = ..., probes: _Optional[_Iterable[_Union[ProbeResult, _Mapping]]] = ..., threshold: _Optional[float] = ..., exit_ports: _Optional[_Iterable[int]] = ..., arrival_port: _Optional[int] = ..., rejected: _Optional[_Iterable[int]] = ..., hypotheses: _Optional[int] = ..., deferred: _Optional[_Iterable[int]] = ..., settled: _Optional[_Iterable[_Union[SettledVisit, _Mapping]]] = ...) -> None: ...
+
+class SettledVisit(_message.Message):
+    __slots__ = ("visit", "node")
+    VISIT_FIELD_NUMBER: _ClassVar[int]
+    NODE_FIELD_NUMBER: _ClassVar[int]
+    visit: int
+    node: int
+    def __init__(self, visit: _Optional[int] = ..., node: _Optional[int] = ...) -> None: ...
 
 class TrueSweep(_message.Message):
     __slots__ = ("time_ns", "sweep_id", "visit_id", "node", "x_m", "y_m", "z_m", "yaw_rad", "roll_rad", "pitch_rad")

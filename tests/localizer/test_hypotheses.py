@@ -18,7 +18,8 @@ from pipemap.localizer import (
     TopoMap,
     map_document,
 )
-from pipemap.localizer.hypotheses import Branch, Hypotheses
+from pipemap.localizer.explore import MapExplorer, telling_exit
+from pipemap.localizer.hypotheses import Branch, Hypotheses, embeds_in_plane
 from tests.conftest import PaperSet
 
 #: A Y fitting (three pipes 120 degrees apart) and a cross, as the robot's exits.
@@ -180,3 +181,73 @@ def test_the_bound_keeps_the_heaviest_and_the_ratio_drops_the_unlikely() -> None
     unlikely = _portless()
     unlikely.visit([Branch(0, None, None), Branch(2, None, None, math.log(0.005))], None, 12.0)
     assert len(unlikely.live) == 1 and unlikely.open == {}
+
+
+#: A cross fitting's ports in clockwise order (as ``clockwise_ports`` numbers them).
+CROSS_PORTS = (math.pi / 2.0, 0.0, -math.pi / 2.0, -math.pi)
+
+
+def _loops(pairs: list[tuple[int, int]]) -> TopoMap:
+    """One cross whose pipes loop back to it: each pair leaves by one port and comes
+    back by the other."""
+    topomap = TopoMap()
+    topomap.visit(0, CROSS_PORTS)
+    for out, back in pairs:
+        topomap.depart(out)
+        topomap.visit(0, None, back)
+    return topomap
+
+
+def test_a_map_is_planar_only_if_its_ports_order_allows_a_plane_drawing() -> None:
+    # Two loops on one cross: north-east and south-west can be drawn without a
+    # crossing; north-south and east-west cannot (each loop splits the plane, and
+    # the other's ends lie on either side).
+    assert embeds_in_plane(_loops([(0, 1), (2, 3)]))
+    assert not embeds_in_plane(_loops([(0, 2), (1, 3)]))
+    assert embeds_in_plane(_loops([(0, 2)]))  # the other ports not driven yet
+    assert embeds_in_plane(TopoMap())
+
+
+def test_a_map_that_cannot_be_drawn_in_the_plane_is_dropped() -> None:
+    # Two twin crosses, 0 and 1. From 0 the robot drives a loop (out by port 0, back
+    # by port 2), then leaves by port 1 and arrives by port 3 at a junction that may
+    # be 0 (a second loop, crossing the first) or its twin 1. No port end is joined
+    # twice either way, and there is no odometry: only planarity tells.
+    exits = (0, 1, 2, 3)
+    hyp = Hypotheses(TopoMap(), 8, 0.01)
+    hyp.visit([Branch(0, None, exits)], CROSS_PORTS, None)
+    hyp.new_traversal()
+    hyp.visit([Branch(1, None, exits)], CROSS_PORTS, None)
+    hyp.new_traversal()
+    hyp.visit([Branch(0, None, exits)], None, None)
+    hyp.depart(0)
+    hyp.visit([Branch(0, 2, exits)], None, None)
+    hyp.depart(1)
+    # Best ranked first: 0, which would win a tie; planarity leaves only 1.
+    hyp.visit([Branch(0, 3, exits), Branch(1, 3, exits)], None, None)
+    assert len(hyp.live) == 1 and hyp.leader.map.visits[-1] == 1
+    assert all(r.conflict is None for r in hyp.leader.map.visit_records)
+
+
+def test_the_explorer_drives_an_exit_that_one_map_cannot_take(
+    paper_sets: dict[str, PaperSet],
+) -> None:
+    # At the deferred revisit (A or B), exit 0 is A's right pipe in one map (to X's
+    # back port) and B's right pipe in the other (to Z's): each far end is joined to
+    # the other twin in the other map, so arriving either way drops a map. The plain
+    # explorer takes the right-most untraversed port instead (port 0).
+    loc, d = _run(LocalizerConfig(), paper_sets, back_to_x=False)
+    plain = MapExplorer().step(loc.map, d[4], 0.0, 0.0, 4.5)
+    told = MapExplorer(rivals=loc.hypothesis_exits).step(loc.map, d[4], 0.0, 0.0, 4.5)
+    assert telling_exit(loc.hypothesis_exits()) == 0
+    assert d[4].exit_ports is not None and told.port == d[4].exit_ports[0] != plain.port
+    assert "cannot take" in told.notes[-1]
+    # Driven (B's right pipe, 1 m, into Z as the first time): A's map would join Z's
+    # pipe end twice. The revisit is settled as B, and the map is right.
+    loc.depart(Y[0])
+    arrived = loc.localize(paper_sets["10"].images, exits_rad=CROSS, odometer_m=5.5)
+    assert arrived.node == 3 and arrived.settled == ((4, 2),)
+    assert loc.map.visits == (0, 1, 2, 3, 2, 3) and loc.hypotheses_alive == 1
+    assert all(v.conflict is None for v in loc.map.visit_records)
+    # One map: nothing to tell apart.
+    assert telling_exit(loc.hypothesis_exits()) is None

@@ -76,6 +76,10 @@ def test_replay_equals_the_online_decisions(recorded_run: Path) -> None:
         assert (logged.candidate if logged.HasField("candidate") else None) == d.candidate
         assert (logged.margin if logged.HasField("margin") else None) == d.margin
         assert [p.kind for p in logged.probes] == [p.request.kind.value for p in d.probes]
+        # Competing maps: how many lived, what the visit may still be, what it settled.
+        assert (logged.hypotheses if logged.HasField("hypotheses") else 1) == d.hypotheses
+        assert tuple(logged.deferred) == d.deferred
+        assert tuple((s.visit, s.node) for s in logged.settled) == d.settled
 
 
 def test_a_lamp_lit_log_is_normalised_as_its_camera_settings_say(recorded_run: Path) -> None:
