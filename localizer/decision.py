@@ -13,12 +13,15 @@ import heapq
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from pipemap.localizer.fastmatch import UNSCREENED, Shortlisted
 from pipemap.localizer.imageset import ImageSet
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.twoview import TwoViewFit
+
+if TYPE_CHECKING:
+    from pipemap.localizer.config import LocalizerConfig
 
 __all__ = [
     "Decision",
@@ -28,6 +31,7 @@ __all__ = [
     "ProbeSource",
     "best_candidate",
     "alike_candidates",
+    "threshold_candidates",
     "check_order",
     "probe_plan",
 ]
@@ -214,6 +218,35 @@ def check_order(
 
     merged = heapq.merge(sorted(screened, key=rank), unscreened, key=rank)
     return list(itertools.islice(filter(allowed, merged), count)), screened
+
+
+def threshold_candidates(
+    matches: list[SetMatch],
+    best: int | None,
+    best_sim: float,
+    config: LocalizerConfig,
+    exclude: int | None,
+    near: Callable[[int], bool],
+) -> list[int]:
+    """The paper's decision, with room for the port and odometry checks: the best
+    candidate if its similarity reaches the threshold and the dead reckoning allows it
+    (``near``), then (only when either check is on) the other candidates of its pool
+    that reach the threshold and that the dead reckoning allows, best first, up to
+    ``config.verify_candidates`` in all (``exclude``: the junction just left)."""
+    if best is None or best_sim < config.threshold:
+        return []
+    if not config.port_check and not config.odometry_check:
+        return [best]
+    # The odometry check acts here as among the two-view candidates: a junction
+    # farther than the dead reckoning's drift allows is not the visit's.
+    allowed = [i for i in range(len(matches)) if i != exclude and near(i)]
+    pool = [i for i in allowed if matches[i].refined] or allowed
+    others = sorted(
+        (i for i in pool if i != best and matches[i].similarity >= config.threshold),
+        key=lambda i: (-matches[i].similarity, i),
+    )
+    first = [best] if near(best) else []
+    return [*first, *others][: config.verify_candidates]
 
 
 def alike_candidates(

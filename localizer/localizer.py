@@ -39,6 +39,7 @@ from pipemap.localizer.decision import (
     best_candidate,
     check_order,
     probe_plan,
+    threshold_candidates,
 )
 from pipemap.localizer.fastmatch import FastMatcher, PreparedSet
 from pipemap.localizer.hypotheses import Branch, Hypotheses, port_log_likelihood
@@ -228,7 +229,14 @@ class Localizer:
                 fit = raw_fit.turned(turn)
         else:
             known = False
-            for i in self._above_threshold(matched_all, best, sim):
+            for i in threshold_candidates(
+                matched_all,
+                best,
+                sim,
+                self.config,
+                self._excluded(),
+                self._odometry.near,
+            ):
                 i_match = match if i == best else matched_all[i].turned(turn)
                 assert i_match is not None
                 i_fit = None
@@ -318,30 +326,6 @@ class Localizer:
         timer.lap("map")
         self.last_phases = timer.seconds
         return decision
-
-    def _above_threshold(
-        self, matches: list[SetMatch], best: int | None, best_sim: float
-    ) -> list[int]:
-        """The paper's decision, with room for the port and odometry checks: the best
-        candidate if its similarity reaches the threshold and the dead reckoning
-        allows it, then (only when either check is on) the other candidates of its
-        pool that reach the threshold and that the dead reckoning allows, best
-        first, up to ``verify_candidates`` in all."""
-        if best is None or best_sim < self.config.threshold:
-            return []
-        if not self.config.port_check and not self.config.odometry_check:
-            return [best]
-        exclude = self._excluded()
-        # The odometry check acts here as among the two-view candidates: a junction
-        # farther than the dead reckoning's drift allows is not the visit's.
-        allowed = [i for i in range(len(matches)) if i != exclude and self._odometry.near(i)]
-        pool = [i for i in allowed if matches[i].refined] or allowed
-        others = sorted(
-            (i for i in pool if i != best and matches[i].similarity >= self.config.threshold),
-            key=lambda i: (-matches[i].similarity, i),
-        )
-        first = [best] if self._odometry.near(best) else []
-        return [*first, *others][: self.config.verify_candidates]
 
     def _expected_nodes(self) -> list[int]:
         """The junctions the map puts near the robot: the one it expects next and the

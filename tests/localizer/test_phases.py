@@ -54,7 +54,7 @@ def clock(monkeypatch: pytest.MonkeyPatch) -> FakeClock:
     _costing(monkeypatch, FastMatcher, "match", fake, 2.0)
     _costing(monkeypatch, localizer_module, "stored_features", fake, 10.0)
     _costing(monkeypatch, Localizer, "_verified", fake, 100.0)
-    _costing(monkeypatch, Localizer, "_above_threshold", fake, 100.0)
+    _costing(monkeypatch, localizer_module, "threshold_candidates", fake, 100.0)
     _costing(monkeypatch, TopoMap, "visit", fake, 1000.0)
     return fake
 
