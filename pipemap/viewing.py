@@ -68,10 +68,13 @@ def _replay(
     log: Path,
     config: LocalizerConfig,
     progress: Callable[[int, int | None], None] | None,
+    recorded_threshold: bool,
 ) -> ReplayResult:
     from pipemap import api
 
-    return api.replay(log, config, progress, keep_prepared=False)
+    return api.replay(
+        log, config, progress, keep_prepared=False, recorded_threshold=recorded_threshold
+    )
 
 
 def _show(
@@ -175,6 +178,7 @@ def view(
     save: str | Path | None = None,
     max_rate_hz: float | None = None,
     progress: Callable[[int, int | None], None] | None = None,
+    recorded_threshold: bool = False,
 ) -> Viewed:
     """Replay ``log`` and show it with its streams in a rerun viewer, or save the
     recording to ``save`` (an ``.rrd`` file, replaced if it exists).
@@ -182,7 +186,8 @@ def view(
     ``config`` is the replay's localizer (pipemap's defaults if ``None``); the
     high-rate streams (ranges, IMU, wheels) reach the view at most ``max_rate_hz``
     messages a second (``None``: :data:`replay.view_topics.DEFAULT_MAX_RATE_HZ`),
-    the log keeps them all; ``progress`` as :func:`pipemap.api.replay` takes it.
+    the log keeps them all; ``progress`` and ``recorded_threshold`` as
+    :func:`pipemap.api.replay` takes them.
 
     The log is opened (and refused if it is not one) before any work. Where the
     system can fork, a child replays it while this process imports rerun and logs
@@ -204,7 +209,7 @@ def view(
     settings = LocalizerConfig() if config is None else config
 
     def replay() -> ReplayResult:
-        return _replay(path, settings, progress)
+        return _replay(path, settings, progress, recorded_threshold)
 
     if not _can_fork():
         done = replay()

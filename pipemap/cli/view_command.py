@@ -129,12 +129,15 @@ def _view(
     err: TextIO,
     where: str | None = None,
     max_rate_hz: float | None = None,
+    recorded: bool = False,
 ) -> None:
     """View ``log`` through :func:`pipemap.api.view` and say where it went (``where``,
-    if given, in the last line): the log's damage and the replay's notes on ``err``."""
+    if given, in the last line): the log's damage and the replay's notes on ``err``
+    (``recorded``: at the threshold the log was recorded with, as ``replay`` does
+    without ``--threshold``)."""
     from pipemap import api
 
-    viewed = api.view(log, config, target, max_rate_hz, progress_printer(err))
+    viewed = api.view(log, config, target, max_rate_hz, progress_printer(err), recorded)
     report_damage(str(log), viewed.contents, err)
     for warning in viewed.result.warnings:
         err.write(f"pipemap: note: {warning}\n")
@@ -160,7 +163,8 @@ def _serve_web(args: argparse.Namespace, target: Path | None, out: TextIO, err: 
     with tempfile.TemporaryDirectory(prefix="pipemap-web-") as folder:
         rrd = target if target is not None else Path(folder) / "view.rrd"
         where = "for the web viewer" if target is None else f"written to {target}"
-        _view(Path(args.log), localizer_config(args), rrd, out, err, where, args.max_rate)
+        recorded = not args.threshold_given
+        _view(Path(args.log), localizer_config(args), rrd, out, err, where, args.max_rate, recorded)
         port = WEB_PORT if args.port is None else args.port
         with serve_web(rrd, port, Path(folder) / "rerun.log") as server:
             out.write(f"serving the view at {server.url} (Ctrl-C stops)\n")
@@ -183,5 +187,6 @@ def run_view(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) ->
         raise InputError("--port: the web viewer's port, so it needs --web")
     if target is None:
         check_display()
-    _view(Path(args.log), localizer_config(args), target, out, err, None, args.max_rate)
+    recorded = not args.threshold_given
+    _view(Path(args.log), localizer_config(args), target, out, err, None, args.max_rate, recorded)
     return 0

@@ -73,3 +73,14 @@ def test_a_log_at_the_default_threshold_gets_no_note() -> None:
     done = pipemap("score", log, "--json", "--threshold", "0.6")
     assert done.returncode == 0 and json.loads(done.stdout)["threshold"] == 0.6
     assert len(_notes(done.stderr)) == 1
+
+
+def test_view_takes_the_recorded_threshold(at_06: Path, tmp_path: Path) -> None:
+    default = pipemap("view", str(at_06), "--save", str(tmp_path / "default.rrd"))
+    other = pipemap(
+        "view", str(at_06), "--save", str(tmp_path / "other.rrd"), "--threshold", "0.36"
+    )
+    for done in (default, other):
+        assert done.returncode == 0, done.stderr
+    assert _notes(default.stderr) == []
+    assert len(_notes(other.stderr)) == 1
