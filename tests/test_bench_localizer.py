@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
@@ -17,14 +18,22 @@ from tests.conftest import REPO, PaperSet
 
 
 @pytest.fixture(scope="module")
-def bench() -> ModuleType:
+def bench() -> Iterator[ModuleType]:
+    """The benchmark as a module. Its import holds OpenCV to one thread, as the
+    benchmark measures; the worker's other tests get their threads back after."""
+    import cv2
+
+    threads = cv2.getNumThreads()
     path = REPO / "benchmarks" / "bench_localizer.py"
     spec = importlib.util.spec_from_file_location("bench_localizer_under_test", path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+    try:
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        cv2.setNumThreads(threads)
 
 
 def test_cold_tries_rebuild_the_candidates_spectra_and_warm_ones_do_not(

@@ -435,7 +435,8 @@ def test_a_decision_is_a_warning_only_where_probes_the_robot_makes_are_missing(
     """At a threshold of 0.6 the stored autonomous run asks for probes its log does not
     hold. Said to be recorded with its probe moves off, those decisions are plain ones
     in the view (as online, the robot made none). Said to make its moves, the probes
-    it would have made are missing: those decisions are warnings."""
+    it would have made are missing: those decisions are warnings, unless the robot
+    refused each missing probe's move (its log says so)."""
     from pipemap.localizer import LocalizerConfig
     from pipemap.recorder import METADATA_RUN
     from pipemap.replay.source import MemorySource
@@ -444,8 +445,12 @@ def test_a_decision_is_a_warning_only_where_probes_the_robot_makes_are_missing(
     run = {**contents.metadata[METADATA_RUN], "probe_moves": probe_moves}
     source = MemorySource(list(contents.messages), run, "paper_autonomous.mcap")
     result = replay(source, LocalizerConfig(threshold=0.6))
-    short = [any(p.similarity is None for p in v.decision.probes) for v in result.visits]
+    # A probe whose move the robot refused (its log says so) is not missing.
+    unanswered = [sum(p.similarity is None for p in v.decision.probes) for v in result.visits]
+    short = [n > v.probes_refused for n, v in zip(unanswered, result.visits, strict=True)]
     assert any(short)
+    # The log holds refused moves: some visits lack only probes the robot refused.
+    assert any(n > 0 and not s for n, s in zip(unanswered, short, strict=True))
     save_view(source, result, tmp_path / "view.rrd")
     levels = column(read_chunks(tmp_path / "view.rrd"), "/log/decisions", "TextLog:level")
     expected = ["WARN" if s and makes_probes else "INFO" for s in short]
