@@ -30,17 +30,13 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from resident import rss_mib as _rss_mib  # noqa: E402
 
 from pipemap.sim.geometry import Mesh, half_pipe_mesh  # noqa: E402
 from pipemap.sim.world import pybullet  # noqa: E402  (imported quietly there)
 from pipemap.sim.world_pieces import add_body  # noqa: E402
-
-
-def _rss_mib() -> float:
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def _texture(client: int, folder: Path, name: str, rng: np.random.Generator) -> int:

@@ -37,17 +37,12 @@ import cv2  # noqa: E402
 
 cv2.setNumThreads(1)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from resident import rss_mib as _rss_mib  # noqa: E402
 
 from pipemap.sim import CameraSpec, Condition, Episode, SimConfig, World, build_network  # noqa: E402
 from pipemap.sim.controller import autonomous_run  # noqa: E402
-
-
-def _rss_mib() -> float:
-    """Resident memory of this process (Linux ``/proc``), MiB."""
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def network_benchmark(name: str, resolution: int, run: bool, whole: bool) -> None:

@@ -34,19 +34,15 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from resident import rss_mib as _rss_mib  # noqa: E402
 
 from pipemap.sim import World, build_network  # noqa: E402
 from pipemap.sim.geometry import Mesh, chamber_mesh, half_pipe_mesh  # noqa: E402
 from pipemap.sim.network import Network  # noqa: E402
 from pipemap.sim.textures import node_texture, pipe_texture  # noqa: E402
 from pipemap.sim.world import pybullet  # noqa: E402  (imported quietly there)
-
-
-def _rss_mib() -> float:
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return float("nan")
 
 
 def _pieces(network: Network, texture_px: int) -> tuple[list[Mesh], list[np.ndarray], list[int]]:
