@@ -243,7 +243,7 @@ def replay(
     progress: Callable[[int, int | None], None] | None = None,
     keep_images: bool = False,
     keep_prepared: bool = True,
-    recorded_threshold: bool = False,
+    recorded_threshold: bool | None = None,
 ) -> ReplayResult:
     """Rebuild the map of ``log`` with a new localizer, from its ``/robot`` topics only.
 
@@ -257,8 +257,10 @@ def replay(
     ``log.visits()`` gives them again on demand. ``keep_images`` keeps them, for
     ``result.visit_sets``. The visits as the matcher prepared them (83 KiB each, for
     pair statistics) are kept unless ``keep_prepared`` is false. With
-    ``recorded_threshold`` the threshold is the one the log was recorded with (as
-    ``pipemap replay`` and ``score`` take it without ``--threshold``).
+    ``recorded_threshold`` the threshold is the one the log was recorded with, as
+    ``pipemap replay`` and ``score`` take it without ``--threshold``; left ``None``,
+    it is so when no ``config`` is given (a script's ``replay(log)`` and the command
+    ``pipemap replay LOG`` build the same map) and ``config``'s threshold otherwise.
     """
     from pipemap.replay import REPLAY_TOPICS
     from pipemap.replay import replay as _replay
@@ -273,7 +275,7 @@ def score(
     log: Log | MessageSource | str | Path,
     config: LocalizerConfig | None = None,
     progress: Callable[[int, int | None], None] | None = None,
-    recorded_threshold: bool = False,
+    recorded_threshold: bool | None = None,
 ) -> ScoreReport:
     """Replay ``log`` and score its map against the log's ground truth (``/truth``);
     ``progress`` and ``recorded_threshold`` as :func:`replay` takes them. The replay's notes are in

@@ -178,7 +178,7 @@ def view(
     save: str | Path | None = None,
     max_rate_hz: float | None = None,
     progress: Callable[[int, int | None], None] | None = None,
-    recorded_threshold: bool = False,
+    recorded_threshold: bool | None = None,
 ) -> Viewed:
     """Replay ``log`` and show it with its streams in a rerun viewer, or save the
     recording to ``save`` (an ``.rrd`` file, replaced if it exists).
@@ -195,7 +195,7 @@ def view(
     does it all, in that order.
     """
     from pipemap.localizer import LocalizerConfig
-    from pipemap.replay import StreamSource
+    from pipemap.replay import StreamSource, takes_recorded_threshold
 
     target = None if save is None else Path(save)
     if target is not None and target.suffix != RRD_SUFFIX:
@@ -206,10 +206,11 @@ def view(
         _quiet_rerun()
     path = Path(log)
     viewed = StreamSource(path)  # a missing, empty or foreign file: refused here
+    recorded = takes_recorded_threshold(recorded_threshold, config)
     settings = LocalizerConfig() if config is None else config
 
     def replay() -> ReplayResult:
-        return _replay(path, settings, progress, recorded_threshold)
+        return _replay(path, settings, progress, recorded)
 
     if not _can_fork():
         done = replay()

@@ -14,6 +14,7 @@ from pipemap.replay.replayer import (
     VisitDecision,
     replay,
     sweeps_of,
+    takes_recorded_threshold,
 )
 from pipemap.replay.score import (
     SCORE_TOPICS,
@@ -52,5 +53,6 @@ __all__ = [
     "score",
     "score_replay",
     "sweeps_of",
+    "takes_recorded_threshold",
     "true_sweeps",
 ]

@@ -72,6 +72,7 @@ __all__ = [
     "node_events_of",
     "replay",
     "sweeps_of",
+    "takes_recorded_threshold",
     "visit_label",
 ]
 
@@ -468,12 +469,13 @@ def replay(
     progress: Callable[[int, int | None], None] | None = None,
     keep_sets: bool = True,
     keep_prepared: bool = True,
-    recorded_threshold: bool = False,
+    recorded_threshold: bool | None = None,
 ) -> ReplayResult:
     """Feed every visit's sweep of ``source`` to a new localizer, in the robot's order.
 
     With ``recorded_threshold`` the threshold is the one the log's run was recorded
-    with (its ``pipemap.run`` settings say it), not ``config``'s. Either way a
+    with (its ``pipemap.run`` settings say it), not ``config``'s; ``None`` takes it
+    so when no ``config`` is given (:func:`takes_recorded_threshold`). Either way a
     warning says when the replay's threshold differs from the recorded one: that one
     chose the probes the robot made and its online decisions.
 
@@ -490,9 +492,19 @@ def replay(
     after reading it whole. ``progress`` gets the visits decided so far and their
     total, once known (``None`` before).
     """
+    recorded = takes_recorded_threshold(recorded_threshold, config)
     config = config if config is not None else LocalizerConfig()
     args = (source, config, progress, keep_sets)
     try:
-        return _Replay(*args, False, keep_prepared, recorded_threshold).run()
+        return _Replay(*args, False, keep_prepared, recorded).run()
     except (_WholeLogNeeded, LogTimeWentBack):
-        return _Replay(*args, True, keep_prepared, recorded_threshold).run()
+        return _Replay(*args, True, keep_prepared, recorded).run()
+
+
+def takes_recorded_threshold(recorded_threshold: bool | None, config: object | None) -> bool:
+    """Whether a replay takes the threshold its log was recorded with: as asked, or,
+    when not asked (``None``), when it is given no localizer settings of its own, so
+    that ``replay(log)`` builds the map ``pipemap replay LOG`` builds."""
+    if recorded_threshold is not None:
+        return recorded_threshold
+    return config is None

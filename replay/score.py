@@ -55,7 +55,13 @@ from pipemap.replay.latency import latency_summary, phase_means
 from pipemap.replay.pairs import PairStatistics, pair_statistics
 from pipemap.replay.pairs import rounded as _round
 from pipemap.replay.pairs import summary as _summary
-from pipemap.replay.replayer import REPLAY_TOPICS, ReplayResult, replay, visit_label
+from pipemap.replay.replayer import (
+    REPLAY_TOPICS,
+    ReplayResult,
+    replay,
+    takes_recorded_threshold,
+    visit_label,
+)
 from pipemap.replay.source import MessageSource
 
 __all__ = [
@@ -460,12 +466,11 @@ def score(
     source: MessageSource,
     config: LocalizerConfig | None = None,
     progress: Callable[[int, int | None], None] | None = None,
-    recorded_threshold: bool = False,
+    recorded_threshold: bool | None = None,
 ) -> ScoreReport:
     """Replay ``source`` and score the result against its truth; ``progress`` and
     ``recorded_threshold`` as :func:`replay` takes them."""
+    recorded = takes_recorded_threshold(recorded_threshold, config)
     config = config if config is not None else LocalizerConfig()
-    result = replay(
-        source, config, progress, keep_sets=False, recorded_threshold=recorded_threshold
-    )
+    result = replay(source, config, progress, keep_sets=False, recorded_threshold=recorded)
     return score_replay(result, source, result.localizer.config.threshold, config.fast)

@@ -84,3 +84,18 @@ def test_view_takes_the_recorded_threshold(at_06: Path, tmp_path: Path) -> None:
         assert done.returncode == 0, done.stderr
     assert _notes(default.stderr) == []
     assert len(_notes(other.stderr)) == 1
+
+
+def test_a_script_takes_the_recorded_threshold_as_the_command_does(at_06: Path) -> None:
+    """``api.replay(log)`` and ``api.score(log)`` build what ``pipemap replay LOG`` and
+    ``pipemap score LOG`` build: the recorded threshold, unless settings are given."""
+    from pipemap import api
+    from pipemap.localizer import LocalizerConfig
+
+    assert api.score(at_06).threshold == 0.6
+    assert api.score(at_06, LocalizerConfig()).threshold == 0.36
+    assert api.score(at_06, LocalizerConfig(), recorded_threshold=True).threshold == 0.6
+    by_script = api.replay(at_06).document()
+    by_command = json.loads(pipemap("replay", str(at_06)).stdout)
+    assert by_script == by_command
+    assert api.replay(at_06, LocalizerConfig()).document() != by_script
