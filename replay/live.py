@@ -26,17 +26,18 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from pipemap.errors import ViewerError
-from pipemap.localizer import Localizer, LocalizerConfig
+from pipemap.localizer import Localizer, LocalizerConfig, TopoMap
 from pipemap.recorder import LogMessage, Topic
 from pipemap.recorder.convert import LogRecord, RecordConverter
 from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.metadata import lamp_strength
 from pipemap.recorder.topics import ROBOT_PREFIX
+from pipemap.replay.logged import NodeEvents
 from pipemap.replay.replayer import (
     LoggedSweep,
     VisitDecision,
     answer_probes,
-    node_events_of,
+    makes_probes,
     sweeps_of,
 )
 from pipemap.replay.source import ordered
@@ -102,9 +103,11 @@ class LiveView:
         # As a replay of the log would: a lamp-lit camera's sweeps are normalised.
         lit = lamp_strength(run_metadata) > 0.0
         self._localizer = Localizer(config.for_camera(lit))
+        # As a replay: probes a robot that makes no probe moves never made are not missing.
+        self._makes_probes = makes_probes(run_metadata)
         self._waiting: list[LoggedSweep] = []  # visits' sweeps the run has not decided yet
         self._probes: dict[int, list[LoggedSweep]] = defaultdict(list)
-        self._node_events: list[LogMessage] = []  # exit scans and departures so far
+        self._node_events: list[LogMessage] = []  # exit scans, departures, refusals, blocks
         self._last_visit: int | None = None  # decided, its departure not yet applied
         self._sweeps = self._images = self._visits = 0
         self._closed = False
@@ -129,13 +132,18 @@ class LiveView:
             self._convert(record)
         batch = ordered(self._collector.messages)
         self._collector.messages = []
+        self.show(batch)
+
+    def show(self, batch: Sequence[LogMessage]) -> None:
+        """Show ``batch`` (the log messages of one or more whole sweeps, in log order),
+        as the log holds them: a stored log's messages show as its run did live."""
         by_topic: dict[str, list[LogMessage]] = defaultdict(list)
         robot: list[LogMessage] = []
         for m in batch:
             by_topic[m.topic].append(m)
             if m.topic.startswith(ROBOT_PREFIX):
                 robot.append(m)
-            if m.topic == Topic.NODE:
+            if m.topic in (Topic.NODE, Topic.EVENTS):
                 self._node_events.append(m)
         log_robot(self.rec, by_topic, self._geometry, self._carried)
         log_truth(self.rec, by_topic, self._carried.trail)
@@ -154,25 +162,42 @@ class LiveView:
     def _decide(self) -> None:
         # As the replay does: each visit with its exit scan, and the departure from
         # the visit before it (logged after that visit's decision) applied first.
-        events = node_events_of(self._node_events)
+        events = NodeEvents("live run")
+        for message in self._node_events:
+            events.feed(message)
+        events.finish([])
         for sweep in self._waiting:
-            last = None if self._last_visit is None else events.get(self._last_visit)
+            last = None if self._last_visit is None else events.of(self._last_visit)
+            for given_up in () if last is None else last.blocked_rad:
+                self._localizer.depart(given_up)
+                self._localizer.block()
             if last is not None and last.departure_rad is not None:
                 self._localizer.depart(last.departure_rad)
                 self._map.depart(self._localizer.map.visit_records[-1].departure_port)
-            scan = events.get(sweep.visit_id)
+            scan = events.of(sweep.visit_id)
             probes = self._probes.pop(sweep.visit_id, [])
-            decision, missing = answer_probes(
+            decision, missing, refused = answer_probes(
                 self._localizer,
                 sweep.images,
                 probes,
                 None if scan is None else scan.exits_rad,
                 None if scan is None else scan.odometer_m,
                 None if scan is None else scan.position_m,
+                events.refused(sweep.visit_id),
             )
+            # A probe the robot refused to move for is not missing, nor is one a robot
+            # that makes no probe moves never made.
+            missing = missing if self._makes_probes else 0
             self._map.add(
                 VisitDecision(
-                    sweep.visit_id, sweep.sweep_id, sweep.end_ns, decision, 0.0, missing, scan
+                    sweep.visit_id,
+                    sweep.sweep_id,
+                    sweep.end_ns,
+                    decision,
+                    0.0,
+                    missing,
+                    scan,
+                    probes_refused=refused,
                 ),
                 self._localizer.map.ports(decision.node),
                 decision.arrival_port,
@@ -180,6 +205,11 @@ class LiveView:
             self._visits += 1
             self._last_visit = sweep.visit_id
         self._waiting = []
+
+    @property
+    def map(self) -> TopoMap:
+        """The map the view's localizer has built from the visits decided so far."""
+        return self._localizer.map
 
     def close(self) -> LiveSummary:
         """Replay the visits not yet decided, send everything, let the viewer go."""

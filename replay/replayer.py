@@ -21,10 +21,9 @@ broken there: the visits either side are not joined by an edge.
 from __future__ import annotations
 
 import logging
-import math
 import time
 from collections import deque
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -37,7 +36,6 @@ from pipemap.localizer import (
     Localizer,
     LocalizerConfig,
     PreparedSet,
-    ProbeRequest,
     TopoMap,
     for_pairs,
     map_document,
@@ -56,6 +54,7 @@ from pipemap.replay.logged import (
     node_events_of,
     sweeps_of,
 )
+from pipemap.replay.logged_probes import LoggedProbes, answer_probes, makes_probes
 from pipemap.replay.source import MessageSource, ordered
 
 __all__ = [
@@ -69,6 +68,7 @@ __all__ = [
     "NodeEvents",
     "SweepAssembler",
     "answer_probes",
+    "makes_probes",
     "node_events_of",
     "replay",
     "sweeps_of",
@@ -80,28 +80,8 @@ __all__ = [
 #: may hold these alone (:class:`replay.source.FileSource`'s ``topics``).
 REPLAY_TOPICS = (Topic.SWEEP, Topic.IMAGE, Topic.NODE, Topic.EVENTS)
 
-#: A probe in the log answers a request for the same kind and move: its steps to
-#: this much, its turn to ``_PROBE_TURN_MATCH_RAD``. The turn is the NCC's estimate of
-#: the rotation, so any change to the arithmetic (another localizer version, another
-#: FFT) moves it in the last digits; the camera cannot tell such turns apart: 1e-3
-#: rad is under a third of a pixel at 400 px (80 degrees over 400 columns).
-_PROBE_MATCH = 1e-9
-_PROBE_TURN_MATCH_RAD = 1e-3
-
 #: ``pipemap -v`` prints each decision (stderr).
 _LOG = logging.getLogger(__name__)
-
-
-def _makes_probes(metadata: dict[str, str] | None) -> bool:
-    """Whether the run's robot makes the probe moves active vision asks for: in the
-    ``active`` placement condition, and in the ``autonomous`` one unless its metadata
-    turns them off (``recorder.session``); a log that does not name its condition is
-    taken to, so a missing probe is reported as missing."""
-    condition = None if metadata is None else metadata.get("condition")
-    if condition == "autonomous":
-        assert metadata is not None
-        return metadata.get("probe_moves", "true") != "false"
-    return condition is None or condition == "active"
 
 
 @dataclass(frozen=True)
@@ -170,53 +150,6 @@ class ReplayResult:
 def visit_label(visit_id: int) -> str:
     """A visit's name in the map document: its number, as ``pipemap sim`` names folders."""
     return f"{visit_id:04d}"
-
-
-class _LoggedProbes:
-    """Answers probe requests from the probe sweeps the log holds for one visit (their
-    image sets made here, before the decision: they are the camera's, not its work)."""
-
-    def __init__(self, probes: list[LoggedSweep], refused: Sequence[str] = ()) -> None:
-        self.probes = [(sweep.probe, sweep.images) for sweep in probes]
-        self.refused_kinds = list(refused)
-        self.not_in_log = 0
-        #: Requests the robot refused to move for (the log's warning says so).
-        self.refused = 0
-
-    def probe(self, request: ProbeRequest) -> ImageSet | None:
-        for probe, images in self.probes:
-            assert probe is not None
-            kind, yaw, forward, left = probe
-            if (
-                kind == request.kind.value
-                and abs(math.remainder(yaw - request.yaw_rad, 2.0 * math.pi))
-                <= _PROBE_TURN_MATCH_RAD
-                and math.isclose(forward, request.forward_m, rel_tol=0.0, abs_tol=_PROBE_MATCH)
-                and math.isclose(left, request.left_m, rel_tol=0.0, abs_tol=_PROBE_MATCH)
-            ):
-                return images
-        if request.kind.value in self.refused_kinds:
-            self.refused_kinds.remove(request.kind.value)
-            self.refused += 1
-        else:
-            self.not_in_log += 1
-        return None
-
-
-def answer_probes(
-    localizer: Localizer,
-    images: ImageSet,
-    probes: list[LoggedSweep],
-    exits_rad: tuple[float, ...] | None = None,
-    odometer_m: float | None = None,
-    position_m: tuple[float, float] | None = None,
-) -> tuple[Decision, int]:
-    """``localizer``'s decision for a visit's ``images`` (and its exit scan, if
-    logged), its probe requests answered from the visit's logged ``probes``; and how
-    many requests the log could not answer."""
-    answers = _LoggedProbes(probes)
-    decision = localizer.localize(images, answers, exits_rad, odometer_m, position_m)
-    return decision, answers.not_in_log
 
 
 class _WholeLogNeeded(Exception):
@@ -332,14 +265,14 @@ class _Replay:
         position = None if scan is None else scan.position_m
         # The sets are made before the clock starts: the latency is the decision's.
         images = sweep.images
-        answers = _LoggedProbes(
+        answers = LoggedProbes(
             self.probes.pop(sweep.visit_id, []), self.events.refused(sweep.visit_id)
         )
         start = time.perf_counter()
         decision = localizer.localize(images, answers, exits, odometer, position)
         latency = time.perf_counter() - start
         missing = answers.not_in_log
-        if not _makes_probes(self.metadata):
+        if not makes_probes(self.metadata):
             self.probes_not_made += missing
             missing = 0
         if self.keep_prepared and localizer.last_prepared is not None:

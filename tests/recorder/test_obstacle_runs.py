@@ -156,3 +156,33 @@ def test_sim_drives_into_the_deposits_it_is_given(
     assert "7/7 nodes (6/8 pipes)" in out and "finished" in out, out
     assert f"{COUNT} deposits: got past 2 stall(s), gave up 4 pipe(s) as blocked" in out, out
     assert status in (0, 1)
+
+
+def test_the_live_view_decides_as_the_replay_with_the_blocked_pipes(
+    obstacle_run: tuple[Path, object], tmp_path: Path
+) -> None:
+    """A run shown live (the log's messages as the run wrote them) decides each visit as
+    its replay does, the pipes given up as blocked included."""
+    from pipemap.localizer import LocalizerConfig
+    from pipemap.recorder import METADATA_RUN, read_log
+    from pipemap.replay.live import LiveView
+    from pipemap.replay.view import describe_decision, recording
+    from tests.replay.test_view import column, read_chunks
+
+    path, _ = obstacle_run
+    contents = read_log(path)
+    run = contents.metadata[METADATA_RUN]
+    rec = recording(run)
+    rec.save(tmp_path / "live.rrd")
+    with LiveView(rec, run, LocalizerConfig()) as live:
+        live.show(list(contents.messages))
+    shown = read_chunks(tmp_path / "live.rrd")
+    replayed = replay(FileSource(path))
+    texts = column(shown, "/log/decisions", "TextLog:text")
+    assert texts == [[describe_decision(v)] for v in replayed.visits]
+    marks = [
+        (n, p) for n in range(replayed.topomap.node_count) for p in replayed.topomap.blocked(n)
+    ]
+    assert (
+        marks and [(n, p) for n in range(live.map.node_count) for p in live.map.blocked(n)] == marks
+    )

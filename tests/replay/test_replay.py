@@ -20,6 +20,7 @@ from pipemap.recorder.messages import refused_probe
 from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay import FileSource, LoggedSweep, replay
 from pipemap.replay import replayer as replayer_module
+from pipemap.replay.logged_probes import LoggedProbes
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
 
@@ -303,7 +304,7 @@ def _probe_sweep(kind: str, yaw: float, forward: float = 0.0, left: float = 0.0)
 def test_a_logged_probe_answers_the_request_for_its_move(
     logged: tuple[Any, ...], asked: ProbeRequest, answered: bool
 ) -> None:
-    answers = replayer_module._LoggedProbes([_probe_sweep(*logged)])
+    answers = LoggedProbes([_probe_sweep(*logged)])
     got = answers.probe(asked)
     assert (got is not None) == answered
     assert answers.not_in_log == (0 if answered else 1)

@@ -457,6 +457,39 @@ def test_a_decision_is_a_warning_only_where_probes_the_robot_makes_are_missing(
     assert [level[0] for level in levels] == expected
 
 
+@pytest.mark.parametrize(
+    ("probe_moves", "makes_probes"), [("false", False), ("true", True)], ids=["off", "on"]
+)
+def test_the_live_view_warns_where_the_saved_view_does(
+    tmp_path: Path, probe_moves: str, makes_probes: bool
+) -> None:
+    """Shown live, the same run's decisions are warnings exactly where a saved view's
+    are: a probe whose move the robot refused is not missing, nor is one a robot that
+    makes no probe moves never made (the test above shows the log holds both kinds)."""
+    from pipemap.localizer import LocalizerConfig
+    from pipemap.recorder import METADATA_RUN
+    from pipemap.replay.live import LiveView
+    from pipemap.replay.source import MemorySource
+
+    contents = read_log(RECORDINGS / "paper_autonomous.mcap")
+    run = {**contents.metadata[METADATA_RUN], "probe_moves": probe_moves}
+    config = LocalizerConfig(threshold=0.6)
+    rec = view_module.recording(run)
+    rec.save(tmp_path / "live.rrd")
+    with LiveView(rec, run, config) as live:
+        live.show(list(contents.messages))
+    levels = column(read_chunks(tmp_path / "live.rrd"), "/log/decisions", "TextLog:level")
+    result = replay(MemorySource(list(contents.messages), run, "paper_autonomous.mcap"), config)
+    expected = ["WARN" if v.probes_not_in_log else "INFO" for v in result.visits]
+    assert [level[0] for level in levels] == expected
+    assert ("WARN" in expected) == makes_probes
+    # Some visit lacks probes only because the robot refused their moves: no warning.
+    refused_only = [
+        v.probes_refused > 0 and v.probes_not_in_log == 0 and makes_probes for v in result.visits
+    ]
+    assert any(refused_only) == makes_probes
+
+
 def test_a_decision_says_when_its_fit_matched_only_the_first_stages() -> None:
     """A two-view fit on the first quarter of a junction's keypoints counts that
     quarter's inliers: the line says so, lest a reader take them for a weak fit."""
