@@ -3,8 +3,8 @@
 Each set is prepared once (:mod:`localizer.prepared`) and its refinement spectra
 built once; at the default settings every cyclic offset of every pair is refined
 (:func:`localizer.spectra._fine_peaks`), or, with ``screen``, every offset that a
-screen at half the refinement's scale finds within :data:`SCREEN_MARGIN` of the best
-(:func:`_promising`). With fewer offsets asked for, a
+screen on images about :data:`SCREEN_WIDTH` px wide finds within
+:data:`SCREEN_MARGIN` of the best (:func:`_promising`). With fewer offsets asked for, a
 :class:`localizer.fastmatch.FastMatcher` chooses them as a localizer decision would.
 """
 
@@ -30,16 +30,18 @@ from pipemap.localizer.spectra import FineSpectra, _fine_peaks, _fine_spectra
 
 __all__ = ["SCREEN_MARGIN", "for_pairs", "pairwise_matches"]
 
-#: With ``screen``, :func:`pairwise_matches` refines each offset whose mean NCC at half
-#: the refinement's scale is within this of the pair's best offset's. On the paper's
-#: 25 sets (300 pairs) the offset that wins at the paper's scale was never more than
-#: 0.0027 below the best at half scale at 800 px, 0.0067 at 400 px; this margin
-#: refines about 30 % of the offsets.
-SCREEN_MARGIN = 0.02
+#: With ``screen``, :func:`pairwise_matches` refines each offset whose screened mean
+#: NCC is within this of the pair's best offset's. On the paper's 25 sets (300 pairs),
+#: screened on images 50 px wide, the offset that wins at the paper's scale was never
+#: more than 0.0118 below the best screened one at 800 px, 0.0067 at 400 px.
+SCREEN_MARGIN = 0.035
 
-#: The smallest refinement image (rows, columns) screened at half its scale; smaller
-#: sets have every offset refined.
-SCREEN_MIN_SHAPE = (16, 32)
+#: The screen's images are the refinement's reduced by a whole factor to about this
+#: width (at least by 2): 200 px at 800 px by 4, 100 px at 400 px by 2. Refinement
+#: images narrower than twice this, or fewer than :data:`SCREEN_MIN_ROWS` rows once
+#: reduced, have every offset refined.
+SCREEN_WIDTH = 48
+SCREEN_MIN_ROWS = 8
 
 
 def for_pairs(prepared: PreparedSet) -> PreparedSet:
@@ -99,12 +101,12 @@ def pairwise_matches(
     which other pairs are asked for. Sets wait for their last pair as
     :func:`for_pairs` keeps them.
 
-    ``screen`` (ignored with ``every_offset``, zooms, or images smaller than
-    :data:`SCREEN_MIN_SHAPE` at the refinement's scale): where every offset would be
-    refined, refine only those a screen at half the refinement's scale puts within
+    ``screen`` (ignored with ``every_offset``, zooms, or images too small, see
+    :data:`SCREEN_WIDTH`): where every offset would be refined, refine only those a
+    screen on images about :data:`SCREEN_WIDTH` px wide puts within
     :data:`SCREEN_MARGIN` of the best (:func:`_promising`). A pair's similarity is then
     the reference's when its best offset is among them, and below it otherwise; on the
-    paper's 300 pairs it always was. About 1.7 times faster at 800 px.
+    paper's 300 pairs, at 800 and 400 px, it always was.
     """
     base = config if config is not None else FastConfig()
     out: dict[tuple[int, int], SetMatch] = {}
@@ -121,7 +123,7 @@ def pairwise_matches(
         last_use[i] = last_use[j] = i
     prepared: dict[int, PreparedSet] = {}
     searched: dict[int, PreparedSet] = {}  # with the spectra a known set is refined by
-    halves: dict[int, FineSpectra | None] = {}  # half-scale spectra of the screen
+    screens: dict[int, FineSpectra | None] = {}  # the screen's spectra of each set
     offsets = sets[0].count if every_offset else base.refine_offsets
     screen = screen and not every_offset and not base.zooms
     for i, later in later_of.items():
@@ -140,9 +142,9 @@ def pairwise_matches(
             chosen = None
             if screen:
                 for k in (i, *later):
-                    if k not in halves:
-                        halves[k] = _half_scale(searched.get(k, query))
-                chosen = _promising(halves[i], [halves[j] for j in later])
+                    if k not in screens:
+                        screens[k] = _screen_spectra(searched.get(k, query))
+                chosen = _promising(screens[i], [screens[j] for j in later])
             found = _every_offset(query, [searched[j] for j in later], chosen)
         else:
             matcher = FastMatcher(everything)
@@ -154,31 +156,33 @@ def pairwise_matches(
         for k in [k for k in prepared if last_use[k] == i]:
             del prepared[k]
             searched.pop(k, None)
-            halves.pop(k, None)
+            screens.pop(k, None)
     return out
 
 
-def _half_scale(prepared: PreparedSet) -> FineSpectra | None:
-    """Searched spectra of ``prepared``'s refinement images at half their scale (2 x 2
-    box means), for the screen of :func:`_promising`; None when they are smaller than
-    :data:`SCREEN_MIN_SHAPE` or the set has fewer than three images."""
+def _screen_spectra(prepared: PreparedSet) -> FineSpectra | None:
+    """Searched spectra of ``prepared``'s refinement images reduced to about
+    :data:`SCREEN_WIDTH` px wide (box means of ``f x f`` pixels, ``f >= 2``), for the
+    screen of :func:`_promising`; None when they are too small for that or the set has
+    fewer than three images."""
     assert prepared.fine_images is not None
     images = prepared.fine_images.images()
     n, rows, width = images.shape
-    if n < 3 or rows < SCREEN_MIN_SHAPE[0] or width < SCREEN_MIN_SHAPE[1]:
+    f = width // SCREEN_WIDTH
+    if n < 3 or f < 2 or rows // f < SCREEN_MIN_ROWS:
         return None
-    even = images[:, : rows - rows % 2, : width - width % 2]
-    half = even.reshape(n, rows // 2, 2, width // 2, 2).mean(axis=(2, 4))
-    return _fine_spectra(half, prepared.width_px)
+    whole = images[:, : rows - rows % f, : width - width % f]
+    reduced = whole.reshape(n, rows // f, f, width // f, f).mean(axis=(2, 4))
+    return _fine_spectra(reduced, prepared.width_px)
 
 
 def _promising(
     query: FineSpectra | None, known: list[FineSpectra | None]
 ) -> list[np.ndarray] | None:
-    """The offsets of each pair worth refining: every offset whose mean peak NCC at
-    half scale (the paper's Algorithm 2 on 2 x 2 box means, a quarter of the
-    transforms) is within :data:`SCREEN_MARGIN` of the pair's best; None (every
-    offset) if a set has no half-scale spectra."""
+    """The offsets of each pair worth refining: every offset whose mean peak NCC on
+    the screen's images (the paper's Algorithm 2 on :func:`_screen_spectra`, a
+    sixteenth of the transforms at 800 px) is within :data:`SCREEN_MARGIN` of the
+    pair's best; None (every offset) if a set has no screen spectra."""
     if query is None or any(other is None for other in known):
         return None
     n = len(query.spectrum)

@@ -305,7 +305,7 @@ def match_image_sets(
     pair). Every folder is read and checked before any pair is compared. ``lamp``:
     normalise each image's illumination first, as the localizer does a lamp-lit
     camera's (``None``: when the folders' ``sweep.txt`` say they were lamp-lit).
-    The fast path refines the offsets a half-scale screen finds promising
+    The fast path refines the offsets a screen on smaller images finds promising
     (``pairwise_matches``'s ``screen``); ``every_offset`` refines them all.
     """
     lit = lamp_lit(folders) if lamp is None else lamp
