@@ -2,9 +2,10 @@
 
 Each set is prepared once (:mod:`localizer.prepared`) and its refinement spectra
 built once; at the default settings every cyclic offset of every pair is refined
-(:func:`localizer.spectra._fine_peaks`), with nothing to screen or rank. With fewer
-offsets asked for, a :class:`localizer.fastmatch.FastMatcher` chooses them as a
-localizer decision would.
+(:func:`localizer.spectra._fine_peaks`), or, with ``screen``, every offset that a
+screen on images about :data:`SCREEN_WIDTH` px wide finds within
+:data:`SCREEN_MARGIN` of the best (:func:`_promising`). With fewer offsets asked for, a
+:class:`localizer.fastmatch.FastMatcher` chooses them as a localizer decision would.
 """
 
 from __future__ import annotations
@@ -25,9 +26,22 @@ from pipemap.localizer.prepared import (
     prepare,
 )
 from pipemap.localizer.similarity import SetMatch, best_offset
-from pipemap.localizer.spectra import _fine_spectra
+from pipemap.localizer.spectra import FineSpectra, _fine_peaks, _fine_spectra
 
-__all__ = ["for_pairs", "pairwise_matches"]
+__all__ = ["SCREEN_MARGIN", "for_pairs", "pairwise_matches"]
+
+#: With ``screen``, :func:`pairwise_matches` refines each offset whose screened mean
+#: NCC is within this of the pair's best offset's. On the paper's 25 sets (300 pairs),
+#: screened on images 50 px wide, the offset that wins at the paper's scale was never
+#: more than 0.0118 below the best screened one at 800 px, 0.0067 at 400 px.
+SCREEN_MARGIN = 0.035
+
+#: The screen's images are the refinement's reduced by a whole factor to about this
+#: width (at least by 2): 200 px at 800 px by 4, 100 px at 400 px by 2. Refinement
+#: images narrower than twice this, or fewer than :data:`SCREEN_MIN_ROWS` rows once
+#: reduced, have every offset refined.
+SCREEN_WIDTH = 48
+SCREEN_MIN_ROWS = 8
 
 
 def for_pairs(prepared: PreparedSet) -> PreparedSet:
@@ -74,6 +88,7 @@ def pairwise_matches(
     config: FastConfig | None = None,
     every_offset: bool = False,
     pairs: list[tuple[int, int]] | None = None,
+    screen: bool = False,
 ) -> dict[tuple[int, int], SetMatch]:
     """Algorithm 2 for every unordered pair ``(i, j)``, ``i < j``, set i as A, or for
     the ``pairs`` given only (each ``i < j``).
@@ -85,6 +100,13 @@ def pairwise_matches(
     junctions, where all offsets score alike). A pair's match does not depend on
     which other pairs are asked for. Sets wait for their last pair as
     :func:`for_pairs` keeps them.
+
+    ``screen`` (ignored with ``every_offset``, zooms, or images too small, see
+    :data:`SCREEN_WIDTH`): where every offset would be refined, refine only those a
+    screen on images about :data:`SCREEN_WIDTH` px wide puts within
+    :data:`SCREEN_MARGIN` of the best (:func:`_promising`). A pair's similarity is then
+    the reference's when its best offset is among them, and below it otherwise; on the
+    paper's 300 pairs, at 800 and 400 px, it always was.
     """
     base = config if config is not None else FastConfig()
     out: dict[tuple[int, int], SetMatch] = {}
@@ -101,7 +123,9 @@ def pairwise_matches(
         last_use[i] = last_use[j] = i
     prepared: dict[int, PreparedSet] = {}
     searched: dict[int, PreparedSet] = {}  # with the spectra a known set is refined by
+    screens: dict[int, FineSpectra | None] = {}  # the screen's spectra of each set
     offsets = sets[0].count if every_offset else base.refine_offsets
+    screen = screen and not every_offset and not base.zooms
     for i, later in later_of.items():
         everything = replace(
             base, refine_candidates=len(later), refine_offsets=offsets, runner_up_offsets=offsets
@@ -115,7 +139,13 @@ def pairwise_matches(
         # A set searched before has the very spectrum a query's would be.
         query = searched[i] if i in searched else _as_query(prepared[i])
         if offsets >= query.count:  # every offset of every pair: the screen would rank only
-            found = _every_offset(query, [searched[j] for j in later])
+            chosen = None
+            if screen:
+                for k in (i, *later):
+                    if k not in screens:
+                        screens[k] = _screen_spectra(searched.get(k, query))
+                chosen = _promising(screens[i], [screens[j] for j in later])
+            found = _every_offset(query, [searched[j] for j in later], chosen)
         else:
             matcher = FastMatcher(everything)
             for j in later:
@@ -126,31 +156,73 @@ def pairwise_matches(
         for k in [k for k in prepared if last_use[k] == i]:
             del prepared[k]
             searched.pop(k, None)
+            screens.pop(k, None)
     return out
 
 
-def _every_offset(query: PreparedSet, known: list[PreparedSet]) -> list[SetMatch]:
+def _screen_spectra(prepared: PreparedSet) -> FineSpectra | None:
+    """Searched spectra of ``prepared``'s refinement images reduced to about
+    :data:`SCREEN_WIDTH` px wide (box means of ``f x f`` pixels, ``f >= 2``), for the
+    screen of :func:`_promising`; None when they are too small for that or the set has
+    fewer than three images."""
+    assert prepared.fine_images is not None
+    images = prepared.fine_images.images()
+    n, rows, width = images.shape
+    f = width // SCREEN_WIDTH
+    if n < 3 or f < 2 or rows // f < SCREEN_MIN_ROWS:
+        return None
+    whole = images[:, : rows - rows % f, : width - width % f]
+    reduced = whole.reshape(n, rows // f, f, width // f, f).mean(axis=(2, 4))
+    return _fine_spectra(reduced, prepared.width_px)
+
+
+def _promising(
+    query: FineSpectra | None, known: list[FineSpectra | None]
+) -> list[np.ndarray] | None:
+    """The offsets of each pair worth refining: every offset whose mean peak NCC on
+    the screen's images (the paper's Algorithm 2 on :func:`_screen_spectra`, a
+    sixteenth of the transforms at 800 px) is within :data:`SCREEN_MARGIN` of the
+    pair's best; None (every offset) if a set has no screen spectra."""
+    if query is None or any(other is None for other in known):
+        return None
+    n = len(query.spectrum)
+    blocks = [(other, k) for other in known if other is not None for k in range(n)]
+    values, _ = _fine_peaks(query, blocks)
+    means = values.reshape(len(known), n, n).mean(axis=2)  # (pair, offset)
+    best = means.max(axis=1, keepdims=True)
+    return [np.flatnonzero(row) for row in means >= best - SCREEN_MARGIN]
+
+
+def _every_offset(
+    query: PreparedSet, known: list[PreparedSet], chosen: list[np.ndarray] | None = None
+) -> list[SetMatch]:
     """:meth:`FastMatcher.match` of ``query`` against each of ``known`` (with their
-    searched spectra) when every candidate is refined at every cyclic offset: the
-    same blocks of image pairs, so the same numbers (each pair's peak is its own,
-    whatever blocks it is computed with), without screening, ranking or a database
-    (for 25 sets at 800 px, 0.5 s of ``pipemap match``'s CPU went to those)."""
+    searched spectra) when every candidate is refined at every cyclic offset (or at
+    the offsets ``chosen`` for each): the same blocks of image pairs, so the same
+    numbers (each pair's peak is its own, whatever blocks it is computed with),
+    without screening, ranking or a database (for 25 sets at 800 px, 0.5 s of
+    ``pipemap match``'s CPU went to those). Offsets not chosen score -inf."""
     for other in known:
         _check_alike(query, other)
     n = query.count
     if not known:
         return []
-    values, columns = _zoomed_peaks(query, [(other, k) for other in known for k in range(n)])
+    if chosen is None:
+        chosen = [np.arange(n)] * len(known)
+    blocks = [(other, int(k)) for other, ks in zip(known, chosen, strict=True) for k in ks]
+    values, columns = _zoomed_peaks(query, blocks)
     j = np.arange(n)
     out = []
-    for r, other in enumerate(known):
+    row = 0
+    for other, ks in zip(known, chosen, strict=True):
         fine = other.fine
         assert fine is not None
         peak_ncc = np.full((n, n), -np.inf)
         peak_dx = np.zeros((n, n))
-        for k in range(n):
-            peak_ncc[j, (j + k) % n] = values[r * n + k]
-            peak_dx[j, (j + k) % n] = columns[r * n + k] * (fine.full_width_px / fine.width)
+        for k in ks:
+            peak_ncc[j, (j + k) % n] = values[row]
+            peak_dx[j, (j + k) % n] = columns[row] * (fine.full_width_px / fine.width)
+            row += 1
         refined = best_offset(peak_ncc, peak_dx, query.fov_rad, query.width_px)
         baseline = (query.baseline + other.baseline) / 2.0
         turn = query.camera_angle_rad - other.camera_angle_rad

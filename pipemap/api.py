@@ -307,6 +307,8 @@ def match_image_sets(
     pair). Every folder is read and checked before any pair is compared. ``lamp``:
     normalise each image's illumination first, as the localizer does a lamp-lit
     camera's (``None``: when the folders' ``sweep.txt`` say they were lamp-lit).
+    The fast path refines the offsets a screen on smaller images finds promising
+    (``pairwise_matches``'s ``screen``); ``every_offset`` refines them all.
     """
     lit = lamp_lit(folders) if lamp is None else lamp
     illumination = LocalizerConfig().illumination
@@ -335,7 +337,7 @@ def match_image_sets(
         if lit:
             image_set = normalised(image_set, illumination)
         prepared.append(for_pairs(prepare(image_set, fast, refinement=False)))
-    return pairwise_matches(prepared, fast, every_offset=every_offset)
+    return pairwise_matches(prepared, fast, every_offset=every_offset, screen=True)
 
 
 def map_image_sets(
