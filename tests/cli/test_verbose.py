@@ -50,7 +50,8 @@ def test_map_prints_each_folders_decision(tmp_path: Path) -> None:
 
 def test_record_prints_each_online_decision(tmp_path: Path) -> None:
     path = tmp_path / "run.mcap"
-    argv = ["-v", "record", "--network", "paper", "--resolution", "32", "-o", str(path)]
+    # tree:3: 5 visits, each decision printed, in a cheap world.
+    argv = ["-v", "record", "--network", "tree:3", "--resolution", "32", "-o", str(path)]
     done = subprocess.run(
         [sys.executable, "-m", "pipemap", *argv], capture_output=True, text=True, timeout=600
     )

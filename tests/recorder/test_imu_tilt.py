@@ -60,11 +60,12 @@ def test_a_tilted_robot_logs_its_imu_reading_and_its_true_tilt(tilted: Path) -> 
 def test_the_autonomous_robot_off_level_too(tmp_path: Path) -> None:
     """The explorer draws a tilt at each junction as the placements do: the camera
     sweeps from the tilted body, the IMU reads it, the truth holds it."""
+    # tree:3: an autonomous run's every junction and revisit, in a cheap world.
     path = tmp_path / "autonomous.mcap"
-    _record(path, 3.0, Condition.AUTONOMOUS)
-    assert _checked_tilt(path) >= 5  # at 32 px the run may stop early: its sweeps are enough
+    _record(path, 3.0, Condition.AUTONOMOUS, "tree:3")
+    assert _checked_tilt(path) == 5  # its 5 visits
     level = tmp_path / "level.mcap"
-    _record(level, 0.0, Condition.AUTONOMOUS)
+    _record(level, 0.0, Condition.AUTONOMOUS, "tree:3")
     first = [s.images.images for s in _sweeps(path)][0]
     assert not (first == [s.images.images for s in _sweeps(level)][0]).all()
 
@@ -102,6 +103,6 @@ def test_the_command_line_tilts_the_robot(tmp_path: Path) -> None:
     from tests.logs import record
 
     path = tmp_path / "cli.mcap"
-    done = record(path, "--tilt-deg", "3")
+    done = record(path, "--network", "tree:3", "--tilt-deg", "3")
     assert done.returncode == 0, done.stderr
-    assert _checked_tilt(path) == 13
+    assert _checked_tilt(path) == 5  # tree:3's 5 visits

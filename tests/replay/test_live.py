@@ -240,7 +240,9 @@ def test_record_goes_on_and_says_so_when_the_live_view_stops(
     monkeypatch.setenv("DISPLAY", ":0")  # a display to spawn on; the view fails instead
     monkeypatch.setattr(view_command, "live_view", lambda *_: LiveViewProcess(no_viewer))
     log = tmp_path / "run.mcap"
-    argv = ["record", *SMALL_RUN, "--condition", "perfect", "-o", str(log), "--view"]
+    # tree:3: a run for the view to stop in, in a cheap world.
+    argv = ["record", *SMALL_RUN, "--network", "tree:3", "--condition", "perfect", "-o", str(log)]
+    argv.append("--view")
     status, stdout, stderr = run(argv, capfd)
     assert status == 0, stderr
     assert stdout.startswith(f"recorded {log} ") and "streamed" not in stdout
