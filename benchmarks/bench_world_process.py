@@ -42,11 +42,12 @@ def _tree_rss_mib(root: int) -> tuple[float, float]:
         try:
             stat = (entry / "stat").read_text()
             statm = (entry / "statm").read_text().split()
-        except OSError:
+            parent = int(stat[stat.rindex(")") + 2 :].split()[1])
+            resident = int(statm[1]) * page
+        except (OSError, ValueError, IndexError):  # a process that ended as it was read
             continue
-        parent = int(stat[stat.rindex(")") + 2 :].split()[1])
         children.setdefault(parent, []).append(int(entry.name))
-        rss[int(entry.name)] = int(statm[1]) * page
+        rss[int(entry.name)] = resident
     total, largest, todo = 0.0, 0.0, [root]
     while todo:
         pid = todo.pop()
