@@ -408,7 +408,7 @@ def record(
 
     target = _new_file(path, overwrite)
     network = build_network(settings.network, seed=settings.seed)
-    check_world_fits(network, settings.network)
+    check_world_fits(network, settings.network, settings.world_memory_mib)
     return record_run(target, settings, network, __version__, progress, overwrite, observer, inline)
 
 
@@ -434,7 +434,7 @@ def simulate(
     if target.is_dir() and earlier_sweeps(target) and not overwrite:
         raise InputError(f"{target}: holds the sweeps of an earlier run; refusing to replace them")
     network = build_network(settings.network, seed=settings.seed)
-    check_world_fits(network, settings.network)
+    check_world_fits(network, settings.network, settings.world_memory_mib)
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(
             f"--start {settings.start}: no such node in {settings.network} "

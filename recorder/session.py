@@ -28,7 +28,9 @@ import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -67,6 +69,7 @@ from pipemap.sim.stream import (
     SweepStart,
 )
 from pipemap.sim.world import CameraSpec, World
+from pipemap.sim.world_process import WorldProcess
 
 #: ``pipemap -v`` prints each online decision (stderr).
 _LOG = logging.getLogger(__name__)
@@ -419,8 +422,14 @@ def record_run(
             def on_build(built: int, pieces: int) -> None:
                 report(Progress(0, 0, 0, world_pieces=(built, pieces)))
 
-        with World(
-            network, seed=settings.seed, obstacles=deposits, looks=looks, on_build=on_build
+        budget = settings.world_memory_mib
+        world_type: Any = partial(WorldProcess, memory_budget_mib=budget) if budget else World
+        with world_type(
+            network,
+            seed=settings.seed,
+            obstacles=deposits,
+            looks=looks,
+            on_build=on_build,
         ) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:

@@ -84,6 +84,10 @@ class RecordSettings:
     #: only to measure what they buy. Not 8, the run metadata says so; 8, the log is
     #: as without the setting.
     hypotheses: int = 8
+    #: The world in a child process restarted when its resident memory passes this
+    #: many MiB (:mod:`sim.world_process`); ``None``: the world in the recording
+    #: process. Not in the log: the log is the same bytes either way.
+    world_memory_mib: int | None = None
 
     def __post_init__(self) -> None:
         try:

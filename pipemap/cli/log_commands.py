@@ -106,7 +106,7 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     target = output_file(args.output, "-o", args.force)
     assert target is not None  # -o is required
     network = build_network(args.network, seed=args.seed)
-    check_world_fits(network, args.network)
+    check_world_fits(network, args.network, args.world_memory)
     if args.start is not None and args.start not in network.labels:
         raise InputError(
             f"--start {args.start}: no such node in {args.network} ({', '.join(network.labels)})"

@@ -76,6 +76,7 @@ def record_settings(args: argparse.Namespace) -> RecordSettings:
         "alike": args.alike,
         # ``record --no-probe-moves``; ``sim`` always makes the moves asked for.
         "probe_moves": not getattr(args, "no_probe_moves", False),
+        "world_memory_mib": args.world_memory,
     }
     for flag, key in (("threshold", "threshold"), ("image_format", "image_format")):
         if getattr(args, flag, None) is not None:

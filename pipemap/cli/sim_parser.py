@@ -97,6 +97,15 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         "right-hand: the paper's right-most-branch rule",
     )
     p.add_argument(
+        "--world-memory",
+        type=arguments.positive_int,
+        default=None,
+        metavar="MIB",
+        help="keep the simulated world in a child process, restarted (with only the pipes "
+        "near the robot rebuilt) when its memory passes MIB MiB; the log is the same bytes "
+        "(default: the world in this process, its memory growing with what the robot reached)",
+    )
+    p.add_argument(
         "--align-sweeps",
         action=argparse.BooleanOptionalAction,
         default=True,

@@ -28,6 +28,18 @@ def test_a_world_that_fits_passes_and_one_that_does_not_is_refused(
     check_world_fits(paper, "paper")
 
 
+def test_a_world_in_a_child_process_is_refused_only_past_its_budget(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    town = build_network("random:1000")  # about 29 GiB whole
+    monkeypatch.setattr(world_budget, "available_mib", lambda: 4096.0)
+    with pytest.raises(SimError, match="its world would take about 29.3 GiB"):
+        check_world_fits(town, "random:1000")
+    check_world_fits(town, "random:1000", world_memory_mib=2048)
+    with pytest.raises(SimError, match=r"--world-memory 5000: more than the 4\.0 GiB"):
+        check_world_fits(town, "random:1000", world_memory_mib=5000)
+
+
 def test_the_machine_says_what_it_has_available() -> None:
     have = world_budget.available_mib()
     assert have is None or have > 0
@@ -47,7 +59,8 @@ def test_the_commands_refuse_it_with_one_line_and_write_nothing(
     assert status == 2
     assert err.splitlines() == [
         "pipemap: error: network 'paper': its world would take about 0.2 GiB (7 nodes at "
-        "about 30 MiB each), more than the 0.1 GiB this machine has available"
+        "about 30 MiB each), more than the 0.1 GiB this machine has available "
+        "(--world-memory keeps it in a child process of bounded memory)"
     ]
     assert not out.exists()
 
