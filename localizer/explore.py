@@ -28,7 +28,8 @@ explorer watches for what that looks like, and counts it:
 * odometry: a junction declared new where the robot's dead reckoning puts a known
   junction with as many pipes, or a junction declared known far from where the
   robot first saw it. The tolerance grows with the distance driven, as the
-  right-hand rule's search for the start does.
+  right-hand rule's search for the start does, and for a known junction also with
+  the distance driven since its first visit (a long loop's drift).
 
 After ``max_inconsistencies`` junctions that show any of these the explorer stops with the status
 ``map inconsistent`` rather than wander: a map it cannot trust cannot say what is
@@ -108,11 +109,16 @@ class ExploreConfig:
     odometry_radius_m: float = 0.3
     drift_per_m: float = 0.005
     odometry_limit_m: float = 0.6
+    #: A known junction is not far from where it was while it lies within this much
+    #: of the distance driven since its first visit (the localizer's
+    #: ``odometry_loop_drift_per_m``): a long loop drifts past the limit above.
+    loop_drift_per_m: float = 0.004
 
     def __post_init__(self) -> None:
         if self.max_inconsistencies < 1:
             raise ValueError("max_inconsistencies must be >= 1")
-        if min(self.odometry_radius_m, self.drift_per_m, self.odometry_limit_m) < 0.0:
+        limits = (self.odometry_radius_m, self.drift_per_m, self.odometry_limit_m)
+        if min(*limits, self.loop_drift_per_m) < 0.0:
             raise ValueError("odometry tolerances must be >= 0")
 
 
@@ -139,6 +145,8 @@ class MapExplorer:
     inconsistencies: list[str] = field(default_factory=list)
     explored: bool = False
     _positions: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: The odometer at each junction's first visit.
+    _odometers: dict[int, float] = field(default_factory=dict)
     _expected: tuple[int, int | None] | None = None
     _goal: int | None = None
     #: The live maps (``Localizer.hypothesis_exits``): while more than one lives, an
@@ -180,13 +188,16 @@ class MapExplorer:
                     )
                     break
             self._positions[node] = here
+            self._odometers[node] = odometer_m
         elif node in self._positions:
             x, y = self._positions[node]
             off = math.hypot(here[0] - x, here[1] - y)
-            if off > tolerance:
+            loop_m = self.config.loop_drift_per_m * (odometer_m - self._odometers[node])
+            if off > max(tolerance, loop_m):
                 found.append(f"junction {node} is {off:.2f} m from where it was by odometry")
         else:
             self._positions[node] = here
+            self._odometers[node] = odometer_m
         return found
 
     def step(

@@ -282,6 +282,23 @@ def test_steps_read_as_instructions() -> None:
     assert describe_step(RouteStep(5, None, None)) == "already at node 5"
 
 
+def test_a_known_junction_may_drift_by_the_loop_allowance() -> None:
+    # Dead reckoning 2 cm off per metre, every tolerance 0.1 m: a revisit lies farther
+    # from the first visit than that, but within 3 % of the distance driven since.
+    tight = ExploreConfig(odometry_radius_m=0.1, drift_per_m=0.0, odometry_limit_m=0.1)
+    walks = {
+        allowance: Walk(
+            build_network("grid:3x3"),
+            drift_per_m=0.02,
+            config=replace(tight, loop_drift_per_m=allowance),
+        )
+        for allowance in (0.03, 0.0)
+    }
+    ends = {allowance: walk.run() for allowance, walk in walks.items()}
+    assert ends == {0.03: ExploreEnd.FINISHED, 0.0: ExploreEnd.INCONSISTENT}
+    assert "from where it was by odometry" in walks[0.0].explorer.inconsistencies[0]
+
+
 @pytest.mark.parametrize("limit", [1, 2])
 def test_the_run_stops_at_the_configured_number_of_inconsistencies(limit: int) -> None:
     walk = Walk(
@@ -321,7 +338,12 @@ def test_the_odometry_tolerance_is_the_configured_one() -> None:
     )
     assert wide.run() is ExploreEnd.INCONSISTENT
     assert "from known junction" in wide.explorer.inconsistencies[0]
-    for bad in ({"odometry_radius_m": -0.1}, {"drift_per_m": -1.0}, {"odometry_limit_m": -1.0}):
+    for bad in (
+        {"odometry_radius_m": -0.1},
+        {"drift_per_m": -1.0},
+        {"odometry_limit_m": -1.0},
+        {"loop_drift_per_m": -1.0},
+    ):
         with pytest.raises(ValueError):
             ExploreConfig(**bad)  # type: ignore[arg-type]
 

@@ -59,10 +59,31 @@ def test_a_revisit_within_the_drift_tolerance_is_recognised(
     loc.localize(images, odometer_m=0.0, position_m=(0.0, 0.0))
     loc.localize(paper_sets["4"].images, odometer_m=20.0, position_m=(5.0, 0.0))
     assert loc.localize(images, odometer_m=40.0, position_m=(0.45, 0.0)).known
+    # Seen 100 m of driving before (0.4 % of it is 0.4 m, under the limit), 0.65 m
+    # off is another junction.
     loc2 = Localizer()
-    loc2.localize(images, odometer_m=0.0, position_m=(0.0, 0.0))
-    loc2.localize(paper_sets["4"].images, odometer_m=20.0, position_m=(5.0, 0.0))
+    loc2.localize(images, odometer_m=300.0, position_m=(0.0, 0.0))
+    loc2.localize(paper_sets["4"].images, odometer_m=320.0, position_m=(5.0, 0.0))
     assert not loc2.localize(images, odometer_m=400.0, position_m=(0.65, 0.0)).known
+
+
+def _loop(config: LocalizerConfig, paper_sets: dict[str, PaperSet], off_m: float) -> bool:
+    """Whether a junction first seen at odometer 0 is recognised after 252 m of
+    driving, ``off_m`` from where the dead reckoning put it then."""
+    images = paper_sets["1"].images
+    loc = Localizer(config)
+    loc.localize(images, odometer_m=0.0, position_m=(0.0, 0.0))
+    loc.localize(paper_sets["4"].images, odometer_m=126.0, position_m=(40.0, 0.0))
+    return loc.localize(images, odometer_m=252.0, position_m=(0.0, off_m)).known
+
+
+def test_a_long_loop_may_drift_past_the_limit(paper_sets: dict[str, PaperSet]) -> None:
+    # random:200 seed 4711 at 96 px: a loop closed 0.61 m off after 252 m of driving,
+    # past the 0.6 m limit; 0.4 % of 252 m is 1.0 m.
+    assert _loop(LocalizerConfig(), paper_sets, 0.61)
+    assert not _loop(LocalizerConfig(odometry_loop_drift_per_m=0.0), paper_sets, 0.61)
+    # Twins 2 m apart are still two junctions after that drive.
+    assert not _loop(LocalizerConfig(), paper_sets, 2.0)
 
 
 def test_without_positions_nothing_changes(paper_sets: dict[str, PaperSet]) -> None:
@@ -73,7 +94,10 @@ def test_without_positions_nothing_changes(paper_sets: dict[str, PaperSet]) -> N
     assert loc.localize(images).known
 
 
-@pytest.mark.parametrize("field", ["odometry_radius_m", "odometry_drift_per_m", "odometry_limit_m"])
+@pytest.mark.parametrize(
+    "field",
+    ["odometry_radius_m", "odometry_drift_per_m", "odometry_limit_m", "odometry_loop_drift_per_m"],
+)
 def test_a_negative_tolerance_is_refused(field: str) -> None:
     with pytest.raises(LocalizerError, match="odometry"):
         replace(LocalizerConfig(), **{field: -0.1})
