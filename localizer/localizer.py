@@ -488,8 +488,13 @@ class Localizer:
                     i,
                     fit,
                     ports,
-                    alike_candidates(
-                        i, expected, allowed, matches, screened, self.config.alike_margin
+                    alike_candidates(  # a junction rejected was told apart
+                        i,
+                        expected,
+                        lambda k: allowed(k) and k not in dict(rejected),
+                        matches,
+                        screened,
+                        self.config.alike_margin,
                     ),
                 )
         return None
