@@ -41,7 +41,7 @@ import copy
 import math
 from dataclasses import dataclass, field
 
-from pipemap.localizer.ports import PortMatch
+from pipemap.localizer.ports import PortMatch, nearest_exit
 from pipemap.localizer.topomap import TopoMap
 
 __all__ = [
@@ -53,6 +53,9 @@ __all__ = [
     "port_log_likelihood",
 ]
 
+#: The exit straight behind the robot is the one it came in by, within half the
+#: smallest angle between two pipes of a junction (as ``Localizer.depart``).
+ARRIVAL_TOLERANCE_RAD = math.pi / 6.0
 #: A map whose pipe end would lead to two places is this much less likely: one
 #: conflict drops a hypothesis under the default prune ratio when another has none.
 CONFLICT_LIKELIHOOD = 1e-3
@@ -155,6 +158,37 @@ class Hypotheses:
                 for h in kept:
                     h.nodes.pop(i, None)
         return tuple(settled)
+
+    def arrival_conflict(
+        self, node: int, ports: PortMatch | None, exits: tuple[float, ...] | None
+    ) -> str | None:
+        """Why known junction ``node`` cannot be where a robot that came by a pipe the
+        map has not driven arrives, its exits ``exits`` fitting ``node``'s ports as
+        ``ports``: the pipe end it came in by (the exit straight behind) already leads
+        elsewhere in the map, and a pipe has two ends (the edge-ordered graph). Only
+        with one map alive (with more, a conflict weighs a map down instead: it may be
+        another map's driven pipe) and competing maps on (with one, as before the
+        rule). ``None`` when it can be, or the pipe was driven (the map's own junction
+        is weighed, not ruled out)."""
+        topomap = self.leader.map
+        previous, last = topomap.previous, topomap.last_visit
+        if self.limit < 2 or len(self.live) > 1 or previous is None or last is None:
+            return None
+        if ports is None or ports.exit_ports is None or exits is None:
+            return None
+        port = last.departure_port
+        if port is not None and topomap.edge_at(previous, port) is not None:
+            return None
+        behind = nearest_exit(exits, math.pi, ARRIVAL_TOLERANCE_RAD)
+        end = None if behind is None else ports.exit_ports[behind]
+        edge = None if end is None else topomap.edge_at(node, end)
+        if edge is None or end is None:
+            return None
+        far, far_port = edge.other(node, end)
+        return (
+            f"port {end} of node {node} already leads to port {far_port} of node {far}, "
+            "not to the pipe the robot came by"
+        )
 
     def depart(self, exit_index: int | None) -> int | None:
         """Every hypothesis leaves by the exit ``exit_index`` of the last visit (each

@@ -291,6 +291,8 @@ class Localizer:
                     continue
                 j_exit = None if j_ports is None else j_ports.exit_ports
                 j_arrival = None if behind is None or j_exit is None else j_exit[behind]
+                if self._hypotheses.arrival_conflict(j, j_ports, exits):
+                    continue
                 branches.append(Branch(j, j_arrival, j_exit, self._evidence(j, j_ports)))
                 fits[j] = (matched_all[j].turned(turn), j_fit.turned(turn), j_ports)
         settled = self._hypotheses.visit(branches, new_ports, odometer_m)
@@ -478,12 +480,21 @@ class Localizer:
                 if ports is not None and not ports.agrees and self.config.port_check:
                     rejected.append((i, ports.reason))
                     continue
+                conflict = self._hypotheses.arrival_conflict(i, ports, exits)
+                if conflict is not None:
+                    rejected.append((i, conflict))
+                    continue
                 return (
                     i,
                     fit,
                     ports,
-                    alike_candidates(
-                        i, expected, allowed, matches, screened, self.config.alike_margin
+                    alike_candidates(  # a junction rejected was told apart
+                        i,
+                        expected,
+                        lambda k: allowed(k) and k not in dict(rejected),
+                        matches,
+                        screened,
+                        self.config.alike_margin,
                     ),
                 )
         return None

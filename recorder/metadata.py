@@ -9,10 +9,11 @@ by name, so that a value that does not parse stays visible as the text it is.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["METADATA_TYPES", "lamp_strength", "typed_metadata"]
+__all__ = ["METADATA_TYPES", "lamp_strength", "odometry_drift", "typed_metadata"]
 
 
 def _bool(text: str) -> bool:
@@ -29,6 +30,7 @@ METADATA_TYPES: dict[str, Callable[[str], Any]] = {
     "fov_rad": float,
     "align_sweeps": _bool,
     "threshold": float,
+    "odometry_drift": float,
     "simulator": json.loads,
     "sweeps": int,
     "visits": int,
@@ -59,3 +61,14 @@ def lamp_strength(run: Mapping[str, str]) -> float:
     except (ValueError, KeyError, TypeError):
         return 0.0
     return float(value) if isinstance(value, (int, float)) else 0.0
+
+
+def odometry_drift(run: Mapping[str, str]) -> float:
+    """How many times as poor as the default robot's the run's odometry was
+    (``record --odometry-drift``); 1.0 where the settings do not say, or say no
+    number of at least 1."""
+    try:
+        value = float(run.get("odometry_drift", "1"))
+    except ValueError:
+        return 1.0
+    return value if math.isfinite(value) and value >= 1.0 else 1.0

@@ -42,6 +42,7 @@ from pipemap.localizer import (
     LocalizerConfig,
     ProbeRequest,
 )
+from pipemap.localizer.odometry import drift_allowed
 from pipemap.recorder import messages
 from pipemap.recorder.background import BackgroundWriter
 from pipemap.recorder.convert import LogRecord, ReadyMessage, SweepDone
@@ -271,7 +272,7 @@ class _PlacedRun:
         pose = PlanarPose(where.x_m, where.y_m, where.yaw_rad)
         if self.motion is None:
             rng = np.random.default_rng([self.settings.seed, PLACED_ROBOT_STREAM])
-            robot = Robot(self.world, pose, rng)
+            robot = Robot(self.world, pose, rng, self.settings.robot_spec())
             robot.place(pose, t_ns)
             self.motion = Motion(robot, self.config, RecoveryConfig(), self.sink, _NO_TIME_LIMIT)
             # Its frame is the start's, as the autonomous robot's is.
@@ -394,10 +395,13 @@ def record_run(
     if settings.start is not None and settings.start not in network.labels:
         raise InputError(f"--start {settings.start}: no such node in {settings.network}")
     camera = settings.camera()
-    config = LocalizerConfig(
-        threshold=settings.threshold,
-        odometry_check=settings.odometry_check,
-        hypotheses=settings.hypotheses,
+    config = drift_allowed(
+        LocalizerConfig(
+            threshold=settings.threshold,
+            odometry_check=settings.odometry_check,
+            hypotheses=settings.hypotheses,
+        ),
+        settings.odometry_drift,
     )
     localizer = Localizer(config.for_camera(camera.lamp_strength > 0.0))
     deposits = settings.deposits(network)  # checked before the log is opened
@@ -450,6 +454,7 @@ def record_run(
                     policy=policy,
                     motor_faults=settings.cut_outs(network),
                     on_explorer=None if robot_probes is None else robot_probes.attach,
+                    robot_spec=settings.robot_spec(),
                 )
                 status = result.status.value
                 distance, duration = result.distance_m, result.duration_ns

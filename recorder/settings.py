@@ -88,6 +88,11 @@ class RecordSettings:
     #: many MiB (:mod:`sim.world_process`); ``None``: the world in the recording
     #: process. Not in the log: the log is the same bytes either way.
     world_memory_mib: int | None = None
+    #: The robot's odometry this many times as poor as the default robot's
+    #: (:meth:`RobotSpec.drifting`), and the localizer's odometry allowance as many
+    #: times as wide (:func:`localizer.odometry.drift_allowed`). 1: the robot as built,
+    #: and the log is as without the setting.
+    odometry_drift: float = 1.0
 
     def __post_init__(self) -> None:
         try:
@@ -96,6 +101,8 @@ class RecordSettings:
             raise InputError(str(exc)) from None
         if not (math.isfinite(self.alike) and 0.0 <= self.alike <= 1.0):
             raise InputError(f"--alike must be a fraction in 0..1, got {self.alike}")
+        if not (math.isfinite(self.odometry_drift) and 1.0 <= self.odometry_drift <= 10.0):
+            raise InputError(f"--odometry-drift must be in 1..10, got {self.odometry_drift}")
         what = (
             ("--obstacles", self.obstacles, "a deposit"),
             ("--motor-faults", self.motor_faults, "a motor cut-out"),
@@ -136,7 +143,7 @@ class RecordSettings:
         """The ``pipemap.run`` metadata record: strings only, deterministic."""
         camera = self.camera()
         simulator: dict[str, Any] = {
-            "robot": dataclasses.asdict(RobotSpec()),
+            "robot": dataclasses.asdict(self.robot_spec()),
             "camera": dataclasses.asdict(camera),
         }
         if self.alike:
@@ -166,6 +173,8 @@ class RecordSettings:
             extra["probe_moves"] = "false"
         if self.hypotheses != 8:
             extra["hypotheses"] = str(self.hypotheses)
+        if self.odometry_drift != 1.0:
+            extra["odometry_drift"] = repr(self.odometry_drift)
         return {
             "format_version": FORMAT_VERSION,
             "pipemap_version": version,
@@ -186,6 +195,10 @@ class RecordSettings:
             **self.image_encoding().metadata(),
             **extra,
         }
+
+    def robot_spec(self) -> RobotSpec:
+        """The robot's build: the default one, with ``odometry_drift`` its odometry's."""
+        return RobotSpec().drifting(self.odometry_drift)
 
     def explorer_config(self) -> ExplorerConfig:
         """The autonomous robot's settings."""

@@ -40,8 +40,9 @@ from pipemap.localizer import (
     for_pairs,
     map_document,
 )
+from pipemap.localizer.odometry import drift_allowed
 from pipemap.recorder import Integrity, Topic
-from pipemap.recorder.metadata import lamp_strength
+from pipemap.recorder.metadata import lamp_strength, odometry_drift
 from pipemap.replay.logged import (
     LoggedExits,
     LoggedSweep,
@@ -368,6 +369,7 @@ def _as_recorded(
     """``config``, with the threshold of the run's settings ``run`` if ``recorded``;
     and a note when the threshold then differs from the run's (``None`` when they
     agree, or the settings do not say)."""
+    config = drift_allowed(config, odometry_drift(run))  # the allowance it was recorded with
     try:
         threshold = float(run["threshold"])
     except (KeyError, ValueError):

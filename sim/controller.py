@@ -61,7 +61,7 @@ from pipemap.sim.motion import Motion
 from pipemap.sim.motor_faults import MotorFault
 from pipemap.sim.policy import ExitPolicy, Junction, RightHandPolicy, RunStatus
 from pipemap.sim.recovery import RecoveryConfig
-from pipemap.sim.robot import PlanarPose, Robot
+from pipemap.sim.robot import PlanarPose, Robot, RobotSpec
 from pipemap.sim.stream import NodeDeparture, NodeExits, RecordSink, TruePose
 from pipemap.sim.unstuck import Left, choose_again, give_up, travel
 from pipemap.sim.world import CameraSpec, World
@@ -237,6 +237,7 @@ def autonomous_run(
     motor_faults: tuple[MotorFault, ...] = (),
     recovery: RecoveryConfig | None = None,
     on_explorer: Callable[[Explorer], None] | None = None,
+    robot_spec: RobotSpec | None = None,
 ) -> ExplorationResult:
     """Place the robot at the start node (default the entry) and explore, choosing
     exits by ``policy`` (default the right-most-branch rule).
@@ -247,14 +248,15 @@ def autonomous_run(
 
     Ground truth labels each sweep with the node within 15 cm of the camera, the
     radius the paper's own data uses for "the same junction" (for scoring only);
-    the explorer itself never sees it.
+    the explorer itself never sees it. ``robot_spec`` is the robot's build (default
+    :class:`RobotSpec`'s; :meth:`RobotSpec.drifting` for poorer odometry).
     """
     network = world.network
     label = start if start is not None else network.entry
     node = network.node(label)
     heading = network.pipe_headings(label)[network.neighbours(label)[0]] + math.pi
     pose = PlanarPose(node.x_m, node.y_m, heading)
-    robot = Robot(world, pose, np.random.default_rng(seed), motor_faults=motor_faults)
+    robot = Robot(world, pose, np.random.default_rng(seed), robot_spec, motor_faults)
 
     def true_node(pose: PlanarPose) -> str:
         nearest = min(network.nodes, key=lambda n: math.hypot(n.x_m - pose.x_m, n.y_m - pose.y_m))

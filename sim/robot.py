@@ -23,6 +23,7 @@ Time is an integer count of nanoseconds of simulated time.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -70,6 +71,21 @@ class RobotSpec:
     def period_ns(self, rate_hz: float) -> int:
         """Sampling period of a sensor in whole nanoseconds."""
         return round(NS_PER_S / rate_hz)
+
+    def drifting(self, factor: float) -> RobotSpec:
+        """This robot with odometry ``factor`` times as poor: its wheels slip and its
+        gyro's noise and bias are ``factor`` times as large (a worn drive on a slimy
+        pipe floor, a cheaper IMU). ``factor`` 1 is this robot itself."""
+        if not (math.isfinite(factor) and factor >= 1.0):
+            raise SimError(f"odometry drift factor must be >= 1, got {factor}")
+        if factor == 1.0:
+            return self
+        return dataclasses.replace(
+            self,
+            slip_std=self.slip_std * factor,
+            gyro_noise_rps=self.gyro_noise_rps * factor,
+            gyro_bias_std_rps=self.gyro_bias_std_rps * factor,
+        )
 
 
 @dataclass(frozen=True)

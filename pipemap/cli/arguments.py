@@ -26,6 +26,7 @@ __all__ = [
     "max_rate",
     "motor_faults",
     "node_id",
+    "odometry_drift",
     "positive_int",
     "resolution",
     "seed",
@@ -121,6 +122,9 @@ max_rate = _checked(
     float, lambda v: math.isfinite(v) and v >= 0.0, "a rate must be >= 0 Hz", ">= 0 Hz"
 )
 alike = _checked(float, lambda v: math.isfinite(v) and 0.0 <= v <= 1.0, "not in [0, 1]", "0..1")
+odometry_drift = _checked(
+    float, lambda v: math.isfinite(v) and 1.0 <= v <= 10.0, "not in [1, 10]", "1..10"
+)
 
 
 def degrees(text: str) -> float:

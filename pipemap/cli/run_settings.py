@@ -74,6 +74,7 @@ def record_settings(args: argparse.Namespace) -> RecordSettings:
         "obstacles": args.obstacles,
         "motor_faults": args.motor_faults,
         "alike": args.alike,
+        "odometry_drift": args.odometry_drift,
         # ``record --no-probe-moves``; ``sim`` always makes the moves asked for.
         "probe_moves": not getattr(args, "no_probe_moves", False),
         "world_memory_mib": args.world_memory,

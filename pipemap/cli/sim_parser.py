@@ -83,6 +83,15 @@ def _add_run_options(p: argparse.ArgumentParser, condition: str) -> None:
         "identical fittings (default 0: every junction looks like itself alone)",
     )
     p.add_argument(
+        "--odometry-drift",
+        type=arguments.odometry_drift,
+        default=1.0,
+        metavar="F",
+        help="a robot whose odometry is F times as poor (1..10): its wheels slip and its "
+        "gyro drifts F times as much, and its localizer allows F times the drift (default "
+        "1: the robot as built; docs/lookalike.md)",
+    )
+    p.add_argument(
         "--images",
         type=arguments.images,
         default=IMAGES_PER_SWEEP,

@@ -251,3 +251,37 @@ def test_the_explorer_drives_an_exit_that_one_map_cannot_take(
     assert all(v.conflict is None for v in loc.map.visit_records)
     # One map: nothing to tell apart.
     assert telling_exit(loc.hypothesis_exits()) is None
+
+
+def _twin_through_a_joined_pipe(config: LocalizerConfig, paper_sets: dict[str, PaperSet]):  # type: ignore[no-untyped-def]
+    """A, then X, then B: A's twin (the very same sweep), reached from X by a pipe
+    not driven yet and entered through the pipe that, on A, leads to X. No dead
+    reckoning at B (lost), so only the graph can tell it from A."""
+    same, x = paper_sets["1"].images, paper_sets["4"].images
+    loc = Localizer(config)
+    d = [loc.localize(same, exits_rad=Y, odometer_m=0.0, position_m=(0.0, 0.0))]
+    loc.depart(-math.pi / 3.0)  # A's right pipe, to X
+    d.append(loc.localize(x, exits_rad=CROSS, odometer_m=1.0, position_m=(1.0, 0.0)))
+    loc.depart(0.0)  # straight on: a pipe not driven yet
+    # B is turned 120 degrees from A: the pipe behind the robot is, on A, A's right one.
+    b = _turned(same, 2.0 * math.pi / 3.0)
+    d.append(loc.localize(b, exits_rad=Y, odometer_m=2.0, position_m=None))
+    return loc, d
+
+
+def test_a_twin_entered_through_a_pipe_end_the_map_has_joined_is_new(
+    paper_sets: dict[str, PaperSet],
+) -> None:
+    # B fits A's keypoints and ports, but the pipe it came in by is, on A, the pipe to
+    # X: a pipe has two ends, and A's is taken. B is new, and the map is right.
+    loc, d = _twin_through_a_joined_pipe(LocalizerConfig(), paper_sets)
+    assert not d[2].known and d[2].node == 2
+    assert [n for n, _ in d[2].rejected] == [0]
+    assert "already leads to port" in d[2].rejected[0][1]
+    assert loc.map.visits == (0, 1, 2)
+    assert all(v.conflict is None for v in loc.map.visit_records)
+    # With one map (the rule as before competing maps), B is merged into A, and the
+    # map meets the conflict.
+    one, d1 = _twin_through_a_joined_pipe(LocalizerConfig(hypotheses=1), paper_sets)
+    assert d1[2].known and d1[2].node == 0
+    assert one.map.visit_records[2].conflict is not None

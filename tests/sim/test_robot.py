@@ -113,6 +113,31 @@ def test_bad_settings_are_refused(world) -> None:  # type: ignore[no-untyped-def
         robot.drive(0.1, 0.0, 0)
 
 
+def test_a_drifting_robot_slips_and_its_gyro_drifts_as_many_times_as_much(world) -> None:  # type: ignore[no-untyped-def]
+    spec = RobotSpec()
+    assert spec.drifting(1.0) is spec
+    poor = spec.drifting(4.0)
+    assert (poor.slip_std, poor.gyro_noise_rps, poor.gyro_bias_std_rps) == pytest.approx(
+        (4 * spec.slip_std, 4 * spec.gyro_noise_rps, 4 * spec.gyro_bias_std_rps)
+    )
+    assert poor.tof_noise_m == spec.tof_noise_m  # the rangers are the same
+    with pytest.raises(SimError):
+        spec.drifting(0.5)
+
+    def slip_m(robot_spec: RobotSpec, seed: int) -> float:
+        """How far the ground travel is from what the encoders counted."""
+        start = PlanarPose(0.0, 0.3, math.pi / 2)
+        robot = Robot(world, start, np.random.default_rng(seed), robot_spec)
+        readings = robot.drive(0.1, 0.0, 5 * 10**9)
+        ticks = [r for r in readings if isinstance(r, EncoderReading)][-1]
+        counted = (ticks.left_ticks + ticks.right_ticks) / 2 / spec.encoder_ticks_per_rev
+        counted *= math.pi * spec.wheel_diameter_m
+        return abs((robot.pose.y_m - 0.3) - counted)
+
+    default = sum(slip_m(spec, seed) for seed in range(4))
+    assert sum(slip_m(poor, seed) for seed in range(4)) > 2.0 * default
+
+
 def test_gyro_reports_short_turns_between_its_samples(world) -> None:  # type: ignore[no-untyped-def]
     # Many turns shorter than the 10 ms IMU period: the gyro's mean rate over each
     # period still integrates to the whole turn, as an integrating MEMS gyro does.
