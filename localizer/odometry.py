@@ -30,14 +30,16 @@ __all__ = ["DeadReckoning", "drift_allowed"]
 def drift_allowed(config: LocalizerConfig, factor: float) -> LocalizerConfig:
     """``config`` for a robot whose odometry drifts ``factor`` times as much as the
     simulator's default robot: the drift per metre and the limit of the odometry
-    check (and so the sigma of its likelihood) ``factor`` times as wide. The radius
-    stays: it is where in a chamber the robot stops, not its odometry's drift."""
+    check (and so the sigma of its likelihood) and its allowance over a loop
+    ``factor`` times as wide. The radius stays: it is where in a chamber the robot
+    stops, not its odometry's drift."""
     if factor == 1.0:
         return config
     return dataclasses.replace(
         config,
         odometry_drift_per_m=config.odometry_drift_per_m * factor,
         odometry_limit_m=config.odometry_limit_m * factor,
+        odometry_loop_drift_per_m=config.odometry_loop_drift_per_m * factor,
     )
 
 

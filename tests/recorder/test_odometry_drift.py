@@ -43,6 +43,7 @@ def test_the_replay_allows_the_drift_the_run_was_recorded_with() -> None:
     config, _ = _as_recorded(plain, {"odometry_drift": "4.0"}, False)
     assert config.odometry_drift_per_m == pytest.approx(4 * plain.odometry_drift_per_m)
     assert config.odometry_limit_m == pytest.approx(4 * plain.odometry_limit_m)
+    assert config.odometry_loop_drift_per_m == pytest.approx(4 * plain.odometry_loop_drift_per_m)
     # Where in a chamber the robot stops is no odometry: the radius stays.
     assert config.odometry_radius_m == plain.odometry_radius_m
     for run_meta in ({}, {"odometry_drift": "lots"}, {"odometry_drift": "0.5"}):
