@@ -60,4 +60,7 @@ def test_a_bad_odometry_drift_gets_one_line_and_exit_2(
     argv = [command, "--network", "paper", "--odometry-drift", value, *out_flag]
     status, out, err = run(argv, capfd)
     assert_one_error(status, out, err, "--odometry-drift")
+    # The flag's own check, not argparse's refusal of a flag it does not know.
+    reason = "not a number" if value == "poor" else "not in [1, 10]"
+    assert f"argument --odometry-drift: {reason}" in err and value in err
     assert list(tmp_path.iterdir()) == []
