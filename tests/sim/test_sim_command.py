@@ -208,6 +208,7 @@ def test_a_run_that_misses_nodes_is_not_reported_finished(
         policy=None,
         motor_faults=(),
         on_explorer=None,
+        robot_spec=None,
     ):
         policies.append(policy)
         faults.append(motor_faults)
