@@ -21,6 +21,7 @@ a key left out takes that command's default::
     tilt_deg = [0, 3]                 # record --tilt-deg      (0)
     lighting = ["lamp", "even"]       # record --lighting      (lamp)
     alike = [0, 0.5, 1]               # record --alike         (0)
+    odometry_drift = [1, 10]          # record --odometry-drift (1)
     rule = ["default", "paper"]       # score's decision rule  (default), see RULES
     threshold = [0.36]                # score --threshold      (the rule's own, 0.36)
 
@@ -81,11 +82,12 @@ GRID_KEYS = (
     "tilt_deg",
     "lighting",
     "alike",
+    "odometry_drift",
     "rule",
     "threshold",
 )
 #: The keys that change the recording; the others change only the scoring.
-RECORDING_KEYS = GRID_KEYS[:13]
+RECORDING_KEYS = GRID_KEYS[:14]
 CONDITIONS = ("perfect", "noise", "active", "entrance", "autonomous")
 #: ``record --explore``: how the autonomous robot chooses its exits.
 EXPLORE_POLICIES = ("map", "right-hand")
@@ -106,6 +108,7 @@ DEFAULTS: dict[str, Any] = {
     "tilt_deg": 0.0,
     "lighting": LIGHTING,
     "alike": 0.0,
+    "odometry_drift": 1.0,
     "rule": "default",
     "threshold": None,
 }
@@ -138,6 +141,7 @@ class RunPoint:
     tilt_deg: float
     lighting: str
     alike: float
+    odometry_drift: float
     rule: str
     threshold: float
 
@@ -160,6 +164,7 @@ class RunPoint:
             *([f"tilt{self.tilt_deg!r}"] if self.tilt_deg else []),
             *([self.lighting] if self.lighting != DEFAULTS["lighting"] else []),
             *([f"alike{self.alike!r}"] if self.alike else []),
+            *([f"drift{self.odometry_drift!r}"] if self.odometry_drift != 1 else []),
             self.rule,
             f"t{self.threshold!r}",
         ]
@@ -193,6 +198,7 @@ class RunPoint:
             tilt_rad=math.radians(self.tilt_deg),
             lamp_strength=LAMP_STRENGTHS[self.lighting],
             alike=float(self.alike),
+            odometry_drift=float(self.odometry_drift),
         )
 
     def commands(self, log: str = "run.mcap") -> tuple[str, str]:
@@ -206,7 +212,9 @@ class RunPoint:
             f"{f' --motor-faults {self.motor_faults}' if self.motor_faults else ''}"
             f"{f' --tilt-deg {self.tilt_deg:g}' if self.tilt_deg else ''}"
             f"{f' --lighting {self.lighting}' if self.lighting != 'lamp' else ''}"
-            f"{f' --alike {self.alike:g}' if self.alike else ''} -o {log}"
+            f"{f' --alike {self.alike:g}' if self.alike else ''}"
+            f"{f' --odometry-drift {self.odometry_drift:g}' if self.odometry_drift != 1 else ''}"
+            f" -o {log}"
         )
         score = f"{RULES[self.rule].command()} {log} --threshold {self.threshold:g} --json"
         return record, score
@@ -254,11 +262,12 @@ def _check_value(key: str, v: Any) -> str | None:
         return None
     if key == "align_sweeps":
         return None if isinstance(v, bool) else f"{v!r} is not true or false"
-    if key in ("threshold", "tilt_deg", "alike"):
+    if key in ("threshold", "tilt_deg", "alike", "odometry_drift"):
         lo, hi, what = {
             "threshold": (-1.0, 1.0, "a threshold"),
             "tilt_deg": (0.0, 15.0, "a tilt"),
             "alike": (0.0, 1.0, "a fraction"),
+            "odometry_drift": (1.0, 10.0, "a drift factor"),
         }[key]
         ok = isinstance(v, int | float) and not isinstance(v, bool)
         if not ok or not math.isfinite(v) or not lo <= v <= hi:
@@ -383,6 +392,7 @@ def _points(where: str, grid: dict[str, list[Any]], mistakes: list[str]) -> Iter
         values["threshold"] = float(values["threshold"])
         values["tilt_deg"] = float(values["tilt_deg"])
         values["alike"] = float(values["alike"])
+        values["odometry_drift"] = float(values["odometry_drift"])
         problems = set(_driving_problems(values, network))
         if problems:
             clashes |= problems

@@ -90,9 +90,10 @@ def add_batch(sub: Subparsers) -> None:
         help="run a grid of record + score runs on this machine or a Ray cluster",
         description="Run every run of SPEC.toml's [grid] (the Cartesian product of its "
         "lists: network, seed, start, condition, resolution, images, align_sweeps, explore, "
-        "obstacles, motor_faults, tilt_deg, lighting, alike, rule, threshold) on Ray: each run is "
-        "recorded, replayed and scored as pipemap record and pipemap score do. Writes "
-        "DIR/runs/<run-id>/ and one table, DIR/results.csv and DIR/results.json. See "
+        "obstacles, motor_faults, tilt_deg, lighting, alike, odometry_drift, rule, threshold) "
+        "on Ray: each run is recorded, replayed and scored as pipemap record and pipemap "
+        "score do. Writes DIR/runs/<run-id>/ and one table, DIR/results.csv and "
+        "DIR/results.json. See "
         "docs/batch.md.",
     )
     p.add_argument("spec", metavar="SPEC.toml", help="the grid to run (TOML)")

@@ -10,7 +10,7 @@ from pipemap.batch.spec import RunPoint
 from pipemap.cli.batch_command import format_duration, progress_printer
 
 POINT = RunPoint(
-    "paper", 0, "S", "perfect", 32, 6, True, "map", 0, 0, 0.0, "lamp", 0.0, "default", 0.36
+    "paper", 0, "S", "perfect", 32, 6, True, "map", 0, 0, 0.0, "lamp", 0.0, 1.0, "default", 0.36
 )
 OK = {
     "status": "ok",

@@ -16,7 +16,7 @@ from pipemap.batch.signals import held_signals, terminate_as_interrupt
 from pipemap.batch.spec import RunPoint
 
 POINT = RunPoint(
-    "paper", 0, "S", "perfect", 32, 6, True, "map", 0, 0, 0.0, "lamp", 0.0, "default", 0.36
+    "paper", 0, "S", "perfect", 32, 6, True, "map", 0, 0, 0.0, "lamp", 0.0, 1.0, "default", 0.36
 )
 #: The two rules of one recording.
 POINTS = (POINT, replace(POINT, rule="paper"))

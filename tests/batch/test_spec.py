@@ -36,7 +36,22 @@ def test_the_grid_is_the_cartesian_product_with_record_defaults() -> None:
     assert len(spec.points) == 8 and spec.recordings() == 4
     first = spec.points[0]
     assert first == RunPoint(
-        "paper", 0, "S", "autonomous", 32, 6, True, "map", 0, 0, 0.0, "lamp", 0.0, "default", 0.36
+        "paper",
+        0,
+        "S",
+        "autonomous",
+        32,
+        6,
+        True,
+        "map",
+        0,
+        0,
+        0.0,
+        "lamp",
+        0.0,
+        1.0,
+        "default",
+        0.36,
     )
     # network outermost, the scoring keys innermost: a recording's runs are neighbours
     assert [p.rule for p in spec.points[:2]] == ["default", "paper"]
@@ -66,6 +81,7 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
         "tilt_deg": 0.0,
         "lighting": "lamp",
         "alike": 0.0,
+        "odometry_drift": 1.0,
         "rule": "default",
         "threshold": 0.36,
     }
@@ -74,12 +90,42 @@ def test_an_empty_grid_is_one_run_at_the_defaults() -> None:
 
 def test_run_ids_are_stable_names_of_the_settings() -> None:
     point = RunPoint(
-        "random:8", 3, "n2", "noise", 64, 9, False, "map", 0, 0, 0.0, "lamp", 0.0, "no-verify", 0.33
+        "random:8",
+        3,
+        "n2",
+        "noise",
+        64,
+        9,
+        False,
+        "map",
+        0,
+        0,
+        0.0,
+        "lamp",
+        0.0,
+        1.0,
+        "no-verify",
+        0.33,
     )
     # Real conditions at their defaults leave the name as it was before they were keys.
     assert point.run_id == "random8-seed3-n2-noise-64px-9img-straight-map-no-verify-t0.33"
     real = RunPoint(
-        "paper", 0, "S", "autonomous", 64, 6, True, "map", 3, 2, 2.5, "even", 0.0, "paper", 0.36
+        "paper",
+        0,
+        "S",
+        "autonomous",
+        64,
+        6,
+        True,
+        "map",
+        3,
+        2,
+        2.5,
+        "even",
+        0.0,
+        1.0,
+        "paper",
+        0.36,
     )
     assert (
         real.run_id
@@ -132,6 +178,18 @@ def test_alike_is_a_recording_setting_handed_to_record() -> None:
     assert "alike" not in spec.points[0].run_id and "alike0.5" in half.run_id
 
 
+def test_odometry_drift_is_a_recording_setting_handed_to_record() -> None:
+    spec = parse_spec('[grid]\nodometry_drift = [1, 10]\nrule = ["default", "paper"]\n')
+    assert spec.recordings() == 2 and len(spec.points) == 4
+    assert spec.varying == ("odometry_drift", "rule")
+    plain, poor = spec.points[0], spec.points[2]
+    assert plain.record_settings().odometry_drift == 1.0
+    assert poor.record_settings().odometry_drift == 10.0
+    assert poor.commands()[0].endswith("--odometry-drift 10 -o run.mcap")
+    assert "--odometry-drift" not in plain.commands()[0]
+    assert "drift" not in plain.run_id and poor.run_id.endswith("-drift10.0-default-t0.36")
+
+
 def test_grids_are_joined_and_shared_runs_made_once() -> None:
     spec = parse_spec("[[grid]]\nseed = [0, 1]\n[[grid]]\nseed = [1, 2]\n")
     assert [p.seed for p in spec.points] == [0, 1, 2]
@@ -139,7 +197,22 @@ def test_grids_are_joined_and_shared_runs_made_once() -> None:
 
 def test_the_commands_rebuild_the_run() -> None:
     point = RunPoint(
-        "grid:3x3", 1, "S", "perfect", 96, 6, False, "map", 0, 0, 0.0, "lamp", 0.0, "paper", 0.36
+        "grid:3x3",
+        1,
+        "S",
+        "perfect",
+        96,
+        6,
+        False,
+        "map",
+        0,
+        0,
+        0.0,
+        "lamp",
+        0.0,
+        1.0,
+        "paper",
+        0.36,
     )
     record, score = point.commands()
     assert record == (
@@ -223,6 +296,11 @@ BAD_SPECS = [
     pytest.param("[grid]\ntilt_deg = [16]\n", "tilt_deg: 16 is not a tilt in [0, 15]", id="tilt"),
     pytest.param("[grid]\nobstacles = [-1]\n", "obstacles: -1 is not a whole number", id="obs"),
     pytest.param("[grid]\nalike = [1.5]\n", "alike: 1.5 is not a fraction in [0, 1]", id="alike"),
+    pytest.param(
+        "[grid]\nodometry_drift = [0.5]\n",
+        "odometry_drift: 0.5 is not a drift factor in [1, 10]",
+        id="odometry_drift",
+    ),
     pytest.param(
         '[grid]\ncondition = ["perfect"]\nobstacles = [1]\n',
         "obstacles: 1 with condition 'perfect': only the autonomous robot",
