@@ -49,6 +49,12 @@ __all__ = ["WORLD_MEMORY_MIB", "WorldProcess", "resident_mib"]
 
 #: Default budget of the world's child process, MiB: past it the child is restarted.
 WORLD_MEMORY_MIB = 2048
+#: A child that passes its budget within this many requests of starting holds less
+#: than one place of the network: the run goes on, rebuilding the same pieces, and
+#: says so once.
+FEW_REQUESTS = 16
+#: What one place needs (docs/performance.md): a fresh child, and a piece in it, MiB.
+CHILD_MIB, PIECE_MIB = 125, 15
 
 _PAGE_MIB = os.sysconf("SC_PAGE_SIZE") / (1024 * 1024)
 _log = logging.getLogger(__name__)
@@ -105,6 +111,9 @@ class WorldProcess:
         self._requests: Connection | None = None
         self._replies: Connection | None = None
         self._due = False
+        #: Requests the current child has answered; whether the budget was called small.
+        self._served = 0
+        self.budget_warned = False
         self._start(on_build)
 
     # -- the child --------------------------------------------------------------------
@@ -170,6 +179,20 @@ class WorldProcess:
         self.peak_child_mib = max(self.peak_child_mib, rss)
         if rss > self.memory_budget_mib:
             self._due = True  # restarted before the next request, not in the middle of one
+            if self._served < FEW_REQUESTS and not self.budget_warned:
+                self.budget_warned = True
+                _log.warning(
+                    "world: --world-memory %.0f MiB holds less than one place: a fresh "
+                    "world process passed it after %d request(s) (%.0f MiB, %d pieces "
+                    "built), so it rebuilds the same pieces every few requests; a "
+                    "process takes about %d MiB and %d MiB a piece (docs/performance.md)",
+                    self.memory_budget_mib,
+                    self._served,
+                    rss,
+                    built,
+                    CHILD_MIB,
+                    PIECE_MIB,
+                )
         return result
 
     def _gone(self) -> WriteError:
@@ -218,7 +241,9 @@ class WorldProcess:
             self._stop()
             self._start()
             self.restarts += 1
+            self._served = 0
         self._send((method, args))
+        self._served += 1
         return self._take(self._receive())
 
     # -- what the robot and the cameras ask ------------------------------------------

@@ -4,6 +4,7 @@ killed child is one line and exit 3."""
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import signal
@@ -90,6 +91,20 @@ def test_a_child_past_its_budget_is_restarted_and_draws_the_same(network, in_pro
     with WorldProcess(network, seed=7, texture_px=32) as roomy:  # 2 GiB: never
         _sense(roomy, views)
         assert roomy.restarts == 0
+        assert not roomy.budget_warned
+
+
+def test_a_budget_too_small_for_one_place_is_said_once(network, caplog) -> None:  # type: ignore[no-untyped-def]
+    views = _views(network)[:3]
+    with (
+        caplog.at_level(logging.WARNING, logger="pipemap"),
+        WorldProcess(network, seed=7, texture_px=32, memory_budget_mib=1) as world,
+    ):
+        _sense(world, views)
+        assert world.restarts >= 2 and world.budget_warned
+    said = [r.getMessage() for r in caplog.records if "holds less than one place" in r.getMessage()]
+    assert len(said) == 1, said  # once, however often the child is restarted
+    assert said[0].startswith("world: --world-memory 1 MiB holds less than one place")
 
 
 def test_a_bad_budget_is_refused(network) -> None:  # type: ignore[no-untyped-def]
