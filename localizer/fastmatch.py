@@ -86,6 +86,9 @@ class FastMatcher:
         self._index = DescriptorIndex()
         self.index_above = INDEX_ABOVE
         self.shortlist = SHORTLIST
+        #: The last set described and its descriptor: a new junction's sweep is
+        #: described once, for the shortlist of its match and again for its add.
+        self._described: tuple[PreparedSet, np.ndarray] | None = None
         # The transforms are loaded here, not at the first sweep (without scipy's
         # pocketfft, scipy.fft's import would make a robot's first decision wait 0.2 s).
         transforms.backend()
@@ -125,7 +128,7 @@ class FastMatcher:
             self._inv_window_norm = _grown(self._inv_window_norm, axis=1)
         self._image_rows[:, :, used : used + n] = prepared.image_rows
         self._inv_window_norm[:, used : used + n, :] = prepared.inv_window_norm
-        self._index.add(_descriptor_of(prepared))
+        self._index.add(self._descriptor(prepared))
         self._sets.append(_kept(prepared, keep_spectra))
         return len(self._sets) - 1
 
@@ -154,6 +157,16 @@ class FastMatcher:
                 assert fine.inv_window_norm is not None
                 total += fine.spectrum.nbytes + fine.inv_window_norm.nbytes + fine.inv_norm.nbytes
         return total
+
+    def _descriptor(self, prepared: PreparedSet) -> np.ndarray:
+        """The index's descriptor of ``prepared``, computed once for the set last
+        described (0.3-0.5 ms a sweep at 400 px)."""
+        described = self._described
+        if described is not None and described[0] is prepared:
+            return described[1]
+        row = _descriptor_of(prepared)
+        self._described = (prepared, row)
+        return row
 
     def _refinable(self, i: int) -> PreparedSet:
         """Known set ``i`` with its refinement spectra, from a small cache (they cost
@@ -238,7 +251,7 @@ class FastMatcher:
         """
         subset = None
         if len(self._sets) > self.index_above:
-            subset = self._index.nearest(_descriptor_of(query), self.shortlist, expected)
+            subset = self._index.nearest(self._descriptor(query), self.shortlist, expected)
         peaks, shifts = self.screen(query, subset)
         if peaks.shape[0] == 0:
             return []

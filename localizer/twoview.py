@@ -275,14 +275,15 @@ class StoredFeatures:
     """The keypoints of one sweep as a known junction keeps them: compact, lossless.
 
     ``points`` are ORB's own float32 pixel positions ``(M, 2)`` in the image ORB saw
-    (reduced by ``factor``), ``image`` the index of the image each came from and
-    ``descriptors`` the ``(M, 32)`` uint8 ORB descriptors: 41 bytes a keypoint,
-    against 56 for bearings in float64. :meth:`features` gives back the very
-    bearings :func:`sweep_features` gives.
+    (reduced by ``factor``), image by image, ``per_image`` how many of them each
+    image gave (:attr:`image` spells out the image of each) and ``descriptors`` the
+    ``(M, 32)`` uint8 ORB descriptors: 40 bytes a keypoint, against 56 for bearings
+    in float64. :meth:`features` gives back the very bearings :func:`sweep_features`
+    gives.
     """
 
     points: np.ndarray
-    image: np.ndarray
+    per_image: np.ndarray
     descriptors: np.ndarray
     count: int
     height: int
@@ -297,7 +298,14 @@ class StoredFeatures:
     @property
     def nbytes(self) -> int:
         """Memory held by the arrays."""
-        return int(self.points.nbytes + self.image.nbytes + self.descriptors.nbytes)
+        return int(self.points.nbytes + self.per_image.nbytes + self.descriptors.nbytes)
+
+    @property
+    def image(self) -> np.ndarray:
+        """The index of the image each keypoint came from, ``(M,)``."""
+        index = np.arange(self.count, dtype=np.uint8 if self.count <= 256 else np.uint16)
+        image: np.ndarray = np.repeat(index, self.per_image)
+        return image
 
     def __len__(self) -> int:
         return len(self.points)
@@ -312,13 +320,14 @@ class StoredFeatures:
         if len(self.points) == 0:
             empty = np.zeros((0, 3)), np.zeros((0, 32), np.uint8), pixel_rad
             return SweepFeatures(*empty, self.image, looks, self.fov_rad, levelled)
+        image = self.image
         # OpenCV puts pixel 0's centre at 0.0; the image centre is at (w - 1) / 2.
         uv = self.points.astype(np.float64)
         if self.factor != 1:
             uv = (uv + 0.5) * self.factor - 0.5
         x = uv[:, 0] - (w - 1) / 2.0
         y = (h - 1) / 2.0 - uv[:, 1]
-        step = self.image.astype(np.float64) * 2.0 * math.pi / n  # j * 2.0 * pi / n, as ever
+        step = image.astype(np.float64) * 2.0 * math.pi / n  # j * 2.0 * pi / n, as ever
         azimuth = self.camera_angle_rad - step - np.arctan2(x, focal_px)
         horizontal = np.hypot(focal_px, x)
         rays = np.stack([np.cos(azimuth) * horizontal, np.sin(azimuth) * horizontal, y], axis=1)
@@ -326,7 +335,7 @@ class StoredFeatures:
         if self.imu_tilt_rad is not None and self.imu_tilt_rad != (0.0, 0.0):
             bearings = bearings @ _levelling(*self.imu_tilt_rad).T
         return SweepFeatures(
-            bearings, self.descriptors, pixel_rad, self.image, looks, self.fov_rad, levelled
+            bearings, self.descriptors, pixel_rad, image, looks, self.fov_rad, levelled
         )
 
 
@@ -358,23 +367,19 @@ def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) ->
         seen = list(kept)
         per_image, threshold = config.keypoints_per_image, config.fast_threshold
     orb = _orb(per_image, w // factor, threshold)
-    points: list[np.ndarray] = []
-    images: list[np.ndarray] = []
-    descriptors: list[np.ndarray] = []
+    points: list[np.ndarray] = [np.zeros((0, 2), np.float32)]
+    per_image = np.zeros(n, dtype=np.int32)
+    descriptors: list[np.ndarray] = [np.zeros((0, 32), np.uint8)]
     for j in range(n):
         keypoints, desc = orb.detectAndCompute(_gray_u8(seen[j]), None)
         if desc is None or not keypoints:
             continue
         points.append(np.asarray(cv2.KeyPoint.convert(keypoints), dtype=np.float32).reshape(-1, 2))
-        images.append(np.full(len(keypoints), j, dtype=np.uint8 if n <= 256 else np.uint16))
+        per_image[j] = len(keypoints)
         descriptors.append(desc)
-    if not points:
-        points = [np.zeros((0, 2), np.float32)]
-        images = [np.zeros(0, np.uint8)]
-        descriptors = [np.zeros((0, 32), np.uint8)]
     return StoredFeatures(
         np.concatenate(points),
-        np.concatenate(images),
+        per_image,
         np.concatenate(descriptors),
         count=n,
         height=h,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipemap.localizer import FastMatcher
+from pipemap.localizer import FastMatcher, fastmatch
 from pipemap.localizer.fastmatch import UNSCREENED, Shortlisted
 from pipemap.localizer.index import DescriptorIndex, descriptor
 from tests.localizer.synthetic import panorama, sweep
@@ -83,3 +83,30 @@ def test_at_or_under_the_limit_every_junction_is_screened_as_before() -> None:
     assert UNSCREENED not in full
     everything = _matcher(seeds, above=0, shortlist=6).match(query)
     assert full == everything
+
+
+def test_a_new_junction_is_described_once_for_its_match_and_its_add(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    matcher = _matcher(list(range(10, 14)), above=2, shortlist=2)
+    query = matcher.prepare(sweep(panorama(20), turn=30))
+    other = matcher.prepare(sweep(panorama(21)))
+    described: list[int] = []
+    real = fastmatch.descriptor
+
+    def counted(images: np.ndarray, fov_rad: float) -> np.ndarray:
+        described.append(len(images))
+        return real(images, fov_rad)
+
+    monkeypatch.setattr(fastmatch, "descriptor", counted)
+    matcher.match(query)
+    matcher.add(query)
+    assert len(described) == 1
+    # What the index keeps is the descriptor of that set, not of the last one described.
+    matcher.match(other)
+    matcher.add(query)
+    assert len(described) == 3
+    rows = matcher._index._rows
+    assert rows is not None
+    expected = real(query.fine_images.images(), query.fov_rad)  # type: ignore[union-attr]
+    assert np.array_equal(rows[4], expected) and np.array_equal(rows[5], expected)

@@ -427,3 +427,23 @@ def test_matching_skips_images_that_cannot_overlap() -> None:
     overlap = overlapping_images(two, other, 0.0, 0.3)
     ia, ib = _matches(two, other, 0.8, overlap)
     assert len(ia) == 0 and len(ib) == 0
+
+
+def test_a_known_junction_keeps_40_bytes_a_keypoint_and_the_image_of_each() -> None:
+    """The keypoints lie image by image, so a count per image names the image of each
+    keypoint: 32 bytes of descriptor and 8 of position a keypoint, nothing more."""
+    images = np.stack([_textured(20 + j, 400) for j in range(6)])
+    images[3] = 128.0  # an image without a keypoint
+    stored = stored_features(ImageSet(images, fov_rad=math.radians(80.0)))
+    assert stored.per_image[3] == 0 and stored.per_image.sum() == len(stored) > 500
+    assert stored.nbytes == 40 * len(stored) + stored.per_image.nbytes
+    expected = np.concatenate([np.full(c, j, np.uint8) for j, c in enumerate(stored.per_image)])
+    assert np.array_equal(stored.image, expected) and stored.image.dtype == np.uint8
+    features = stored.features()
+    assert features.image is not None and np.array_equal(features.image, expected)
+    # Each keypoint's bearing looks out of its own image (60 degrees apart).
+    assert features.image_azimuth_rad is not None
+    azimuth = np.arctan2(features.bearings[:, 1], features.bearings[:, 0])
+    looks = features.image_azimuth_rad[expected]
+    off_axis = np.abs(np.remainder(azimuth - looks + math.pi, 2 * math.pi) - math.pi)
+    assert off_axis.max() <= math.radians(40.0)
