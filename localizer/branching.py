@@ -99,11 +99,14 @@ def new_branch(
     behind: int | None,
     prepared: PreparedSet,
     stored: StoredFeatures | None,
+    fits: dict[int, Fit],
 ) -> tuple[Branch, tuple[float, ...]] | None:
     """The branch that the visit (its sweep ``prepared``, its keypoints ``stored``,
     the recognised junction ``branches[0]``) is a new junction of a known look, and
     its ports; ``None`` where the module's rule does not give one. The new junction
-    is added to the matcher's pool when it is given."""
+    is added to the matcher's pool when it is given. Where the look repeats, the
+    other known junctions of the look that the odometry allows join ``branches``
+    (their fits ``fits``), whatever their similarity: it cannot tell them apart."""
     config, topomap = loc.config, loc.map
     node = branches[0].node
     if exits is None or stored is None or node == loc.expected_node():
@@ -112,14 +115,16 @@ def new_branch(
     port = None if last is None else last.departure_port
     if previous is not None and port is not None and topomap.edge_at(previous, port) is not None:
         return None  # the robot came by a pipe the map has driven
-    odometry = loc._odometry.log_likelihood(node)
+    repeats = _repeats(loc, branches, features, matched_all, exits, behind, fits)
+    if not alike and not repeats:
+        return None
+    # Not at any of the known junctions it may be: the nearest by odometry counts.
+    odometry = max(loc._odometry.log_likelihood(b.node) for b in branches)
     if odometry >= 0.0:
         return None
     log_likelihood = math.log(NEW_LIKELIHOOD) + math.log1p(-math.exp(odometry))
     best = max(b.log_likelihood for b in branches)
     if log_likelihood - best < math.log(config.hypothesis_prune_ratio):
-        return None
-    if not alike and not _look_repeats(loc, branches, features, matched_all, exits):
         return None
     new = loc._matcher.add(prepared)
     loc._odometry.remember(new)
@@ -129,26 +134,49 @@ def new_branch(
     return Branch(new, arrival, exit_ports, log_likelihood, new=True), new_ports
 
 
-def _look_repeats(
+def _repeats(
     loc: Localizer,
     branches: list[Branch],
     features: SweepFeatures,
     matched_all: list[SetMatch],
     exits: tuple[float, ...] | None,
+    behind: int | None,
+    fits: dict[int, Fit],
 ) -> bool:
-    """Whether the keypoints of another known junction than the branches' (one of the
-    :data:`REPEAT_CANDIDATES` best ranked whose ports may fit) fit the sweep, its
-    ports fitting the exits, wherever the odometry puts it."""
+    """Whether the keypoints of another known junction than the branches' fit the
+    sweep, its ports fitting the exits: of the :data:`REPEAT_CANDIDATES` best ranked
+    that the odometry allows, each that fits becomes a branch (unless the pipe end
+    the robot came in by is taken there); if none does, the best ranked beyond the
+    odometry's reach is tried, for the look alone."""
     skip = {b.node for b in branches} | {loc._excluded()}
-    topomap = loc.map
+    topomap, config = loc.map, loc.config
+    near = loc._odometry.near
 
     def other(i: int) -> bool:
         return (
             i not in skip and not topomap.unused(i) and loc._allowed_rotations(i, exits, 0.0) != ()
         )
 
-    ranked, _ = check_order(matched_all, other, REPEAT_CANDIDATES)
-    needed = loc.config.verify_inliers
+    repeats = False
+    ranked, _ = check_order(matched_all, lambda i: other(i) and near(i), REPEAT_CANDIDATES)
+    for i in ranked:
+        fit = loc._fit(i, features, matched_all[i].rotation_rad, config.verify_inliers, exits, 0.0)
+        if fit is None or fit.inliers < config.verify_inliers:
+            continue
+        repeats = True
+        ports = loc._ports_of(i, exits, fit.rotation_rad)
+        if ports is not None and not ports.agrees and config.port_check:
+            continue
+        if loc._hypotheses.arrival_conflict(i, ports, exits):
+            continue
+        i_exit = None if ports is None else ports.exit_ports
+        i_arrival = None if behind is None or i_exit is None else i_exit[behind]
+        branches.append(Branch(i, i_arrival, i_exit, loc._evidence(i, ports)))
+        fits[i] = (matched_all[i], fit, ports)
+    if repeats:
+        return True
+    ranked, _ = check_order(matched_all, lambda i: other(i) and not near(i), 1)
+    needed = config.verify_inliers
     for i in ranked:
         fit = loc._fit(i, features, matched_all[i].rotation_rad, needed, exits, 0.0)
         if fit is not None and fit.inliers >= needed:

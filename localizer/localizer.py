@@ -288,7 +288,7 @@ class Localizer:
             )
             own = stored if matched is query else None
             grown = new_branch(
-                self, branches, alike, features, matched_all, exits, behind, prepared, own
+                self, branches, alike, features, matched_all, exits, behind, prepared, own, fits
             )
             if grown is not None:
                 branches, new_ports = [*branches, grown[0]], grown[1]

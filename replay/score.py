@@ -157,7 +157,8 @@ class ScoreReport:
     def _undecided(self) -> dict[str, Any]:
         """The decisions made among junctions nothing told apart, and how they went."""
         outcomes = {v.visit: v.outcome for v in self.visits}
-        right = sum(outcomes.get(v) == "correct_known" for v in self.alike_visits)
+        # Right as the final map has it: one settled later as a new junction, rightly, is.
+        right = sum(outcomes.get(v) in ("correct_known", "correct_new") for v in self.alike_visits)
         return {
             "visits": list(self.alike_visits),
             "right": right,
