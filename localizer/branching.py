@@ -13,9 +13,11 @@ be new when all of these hold:
 * the robot came by a pipe the map has not driven (a driven pipe says where it leads)
   and the map does not expect ``j`` there;
 * the look repeats: another known junction's keypoints fit the sweep too (at least
-  ``verify_inliers``, its ports fitting the exits; odometry aside), or the visit
-  names junctions nothing told apart (``Decision.alike``);
-* the robot's dead reckoning is not where ``j`` was: the new map's likelihood is
+  ``verify_inliers``, its ports fitting the exits; the best ranked one the odometry
+  allows, which then is a branch too, or else the best ranked beyond its reach), or
+  the visit names junctions nothing told apart (``Decision.alike``);
+* the robot's dead reckoning is not where ``j`` (or the nearest of the known
+  junctions the visit may be) was: the new map's likelihood is
   :data:`NEW_LIKELIHOOD` times the probability that the robot is not at ``j`` by the
   odometry's Gaussian (one minus its density ratio at that distance), so at ``j``'s
   own place the branch has no weight, and without dead reckoning there is none;
@@ -52,7 +54,7 @@ __all__ = ["NEW_LIKELIHOOD", "REPEAT_CANDIDATES", "alike_branches", "new_branch"
 NEW_LIKELIHOOD = 0.1
 #: How many other known junctions (the best ranked) are fitted to see whether the
 #: look repeats.
-REPEAT_CANDIDATES = 2
+REPEAT_CANDIDATES = 1
 
 #: The fit a branch was weighed by: the match, the two-view fit and the ports.
 Fit = tuple["SetMatch | None", "TwoViewFit | None", "PortMatch | None"]

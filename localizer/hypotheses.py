@@ -41,7 +41,6 @@ agree, and the map the localizer shows is always the heaviest hypothesis's.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass, field
 
@@ -147,7 +146,7 @@ class Hypotheses:
                 readings.setdefault(h.read(b).node, (b, h.read(b)))
             for k, (branch, read) in enumerate(readings.values()):
                 last = k == len(readings) - 1
-                topomap = h.map if last else copy.deepcopy(h.map)
+                topomap = h.map if last else h.map.copy()
                 nodes = h.nodes if last else dict(h.nodes)
                 aliases = h.aliases if last else dict(h.aliases)
                 weight = h.log_weight + branch.log_likelihood

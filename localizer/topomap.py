@@ -235,6 +235,20 @@ class TopoMap:
         """Edges in label order, each as first traversed."""
         return list(self._edges.values())
 
+    def copy(self) -> TopoMap:
+        """An independent copy (its edges and visits are immutable records, shared)."""
+        other = TopoMap()
+        other._ports = list(self._ports)
+        other._unused = set(self._unused)
+        other._edges = dict(self._edges)
+        other._ends = dict(self._ends)
+        other._traversed = set(self._traversed)
+        other._blocked = set(self._blocked)
+        other._visits = list(self._visits)
+        other._odometer = list(self._odometer)
+        other._traversal_start = self._traversal_start
+        return other
+
     # -- growing ---------------------------------------------------------------------
 
     def visit(

@@ -647,3 +647,17 @@ def test_a_document_that_joins_an_unused_id_is_refused() -> None:
     }
     with pytest.raises(ValueError, match="does not have"):
         TopoMap.from_dict(doc)
+
+
+def test_a_copy_grows_apart_from_its_original() -> None:
+    m = TopoMap()
+    m.visit(0, (0.0, 3.0))
+    m.depart(1)
+    twin = m.copy()
+    assert twin.to_json() == m.to_json() and twin.visits == m.visits
+    twin.visit(2, (0.0, 2.0, -2.0), 0, 1.0, pooled=True)
+    twin.block()
+    assert m.node_count == 1 and m.visits == (0,) and m.edges() == []
+    assert m.untraversed(0) == [0] and twin.unused(1) and not m.blocked(0)
+    m.visit(1, (1.0,), 0)
+    assert twin.visits == (0, 2) and twin.ports(1) is None
