@@ -6,8 +6,12 @@ does not bet the map on the best ranked one: it keeps a map per junction the vis
 may be (:class:`Hypotheses`), each with a weight, and lets what appearance cannot
 fake decide later. This is the multi-hypothesis topological mapping of Tully, Kantor
 and Choset (2009), on the edge-ordered graph the map already is (ports in cyclic
-order), restricted to the identity of revisits: every hypothesis has the same nodes
-and differs only in which known junction some visits were.
+order): the hypotheses differ in which known junction some visits were, and in
+whether a visit was a known junction or a new one of the same look (a *new
+branch*). New junctions take their ids from one pool (the matcher's): a map that
+took a visit as known junction ``j`` where another took it as new junction ``n``
+leaves ``n`` unused (:meth:`TopoMap.unused`) and reads every later visit of ``n``
+as one of ``j``, its ports turned as that visit fitted them (:attr:`Hypothesis.aliases`).
 
 The weight of a hypothesis is the product of the likelihoods of what it says:
 
@@ -37,7 +41,6 @@ agree, and the map the localizer shows is always the heaviest hypothesis's.
 
 from __future__ import annotations
 
-import copy
 import math
 from dataclasses import dataclass, field
 
@@ -75,6 +78,8 @@ class Branch:
     arrival_port: int | None
     exit_ports: tuple[int, ...] | None
     log_likelihood: float = 0.0
+    #: The visit is a junction not known before (an id new to every map).
+    new: bool = False
 
 
 @dataclass
@@ -87,6 +92,21 @@ class Hypothesis:
     nodes: dict[int, int] = field(default_factory=dict)
     #: The last visit's exit ports under this hypothesis (for :meth:`Hypotheses.depart`).
     exit_ports: tuple[int, ...] | None = None
+    #: Pool id another map gave a new junction -> this map's junction for it and, for
+    #: each of that id's ports, this junction's port.
+    aliases: dict[int, tuple[int, tuple[int, ...] | None]] = field(default_factory=dict)
+
+    def read(self, branch: Branch) -> Branch:
+        """``branch`` as this map reads it: an id it leaves unused (:attr:`aliases`) is
+        its own junction, the ports turned to match."""
+        if branch.node not in self.aliases:
+            return branch
+        node, turn = self.aliases[branch.node]
+        if turn is None or branch.exit_ports is None:
+            return Branch(node, None, None, branch.log_likelihood)
+        arrival = None if branch.arrival_port is None else turn[branch.arrival_port]
+        exits = tuple(turn[p] for p in branch.exit_ports)
+        return Branch(node, arrival, exits, branch.log_likelihood)
 
 
 class Hypotheses:
@@ -117,16 +137,25 @@ class Hypotheses:
         each as ``(visit index, node)``."""
         index = self.leader.map.visit_count
         grown: list[Hypothesis] = []
+        new = next((b for b in branches if b.new), None)
         for h in self.live:
-            for k, branch in enumerate(branches):
-                last = k == len(branches) - 1
-                topomap = h.map if last else copy.deepcopy(h.map)
+            # A map that leaves a branch's junction unused reads it as its own (and a
+            # junction it has twice is one branch).
+            readings: dict[int, tuple[Branch, Branch]] = {}
+            for b in branches:
+                readings.setdefault(h.read(b).node, (b, h.read(b)))
+            for k, (branch, read) in enumerate(readings.values()):
+                last = k == len(readings) - 1
+                topomap = h.map if last else h.map.copy()
                 nodes = h.nodes if last else dict(h.nodes)
+                aliases = h.aliases if last else dict(h.aliases)
                 weight = h.log_weight + branch.log_likelihood
-                weight += _traversal_log_likelihood(topomap, branch, ports, odometer_m)
+                weight += _traversal_log_likelihood(topomap, read, ports, odometer_m)
                 if len(branches) > 1:
-                    nodes[index] = branch.node
-                grown.append(Hypothesis(topomap, weight, nodes, branch.exit_ports))
+                    nodes[index] = read.node
+                if new is not None and not branch.new:
+                    aliases[new.node] = (read.node, _turn(new.exit_ports, read.exit_ports))
+                grown.append(Hypothesis(topomap, weight, nodes, read.exit_ports, aliases))
         if len(branches) > 1:
             self.branched = True
         return self._prune(grown)
@@ -259,6 +288,17 @@ def embeds_in_plane(topomap: TopoMap) -> bool:
     return len(parent) - len(edges) + faces == 2 * components
 
 
+def _turn(new: tuple[int, ...] | None, known: tuple[int, ...] | None) -> tuple[int, ...] | None:
+    """For each port of a new junction (its exits' clockwise order ``new``), the port
+    of the known junction the same exits fitted as ``known``."""
+    if new is None or known is None:
+        return None
+    turn = [0] * len(new)
+    for exit_index, port in enumerate(new):
+        turn[port] = known[exit_index]
+    return tuple(turn)
+
+
 def port_log_likelihood(ports: PortMatch | None, tolerance_rad: float) -> float:
     """The log-likelihood of a visit's exits fitting a junction's ports with their
     misfit: a Gaussian, sigma ``tolerance_rad`` (0 with nothing compared)."""
@@ -276,7 +316,7 @@ def _traversal_log_likelihood(
     previous = topomap.previous
     last = topomap.last_visit
     departure = None if previous is None or last is None else last.departure_port
-    topomap.visit(branch.node, ports, branch.arrival_port, odometer_m)
+    topomap.visit(branch.node, ports, branch.arrival_port, odometer_m, pooled=True)
     record = topomap.last_visit
     assert record is not None
     if record.conflict is not None:

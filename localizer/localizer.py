@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
+from pipemap.localizer.branching import Fit, alike_branches, new_branch
 from pipemap.localizer.config import DEFAULT_THRESHOLD, PAPER, LocalizerConfig
 from pipemap.localizer.decision import (
     Decision,
@@ -235,7 +236,7 @@ class Localizer:
                 sim,
                 self.config,
                 self._excluded(),
-                self._odometry.near,
+                lambda i: self._odometry.near(i) and not self.map.unused(i),
             ):
                 i_match = match if i == best else matched_all[i].turned(turn)
                 assert i_match is not None
@@ -280,31 +281,27 @@ class Localizer:
             behind = _nearest_exit(exits, math.pi, _DEPARTURE_TOLERANCE_RAD)
         arrival = None if behind is None or exit_ports is None else exit_ports[behind]
         branches = [Branch(node, arrival, exit_ports, self._evidence(node, ports))]
-        fits = {node: (match, fit, ports)}
-        if known and alike and features is not None and self.config.hypotheses > 1:
-            for j in alike:
-                j_fit = self._fit(j, features, matched_all[j].rotation_rad, 0, exits, turn)
-                if j_fit is None or j_fit.inliers < self.config.verify_inliers:
-                    continue
-                j_ports = self._ports_of(j, exits, j_fit.turned(turn).rotation_rad)
-                if j_ports is not None and not j_ports.agrees and self.config.port_check:
-                    continue
-                j_exit = None if j_ports is None else j_ports.exit_ports
-                j_arrival = None if behind is None or j_exit is None else j_exit[behind]
-                if self._hypotheses.arrival_conflict(j, j_ports, exits):
-                    continue
-                branches.append(Branch(j, j_arrival, j_exit, self._evidence(j, j_ports)))
-                fits[j] = (matched_all[j].turned(turn), j_fit.turned(turn), j_ports)
+        fits: dict[int, Fit] = {node: (match, fit, ports)}
+        if known and features is not None and self.config.hypotheses > 1:
+            branches += alike_branches(
+                self, alike, features, matched_all, turn, exits, behind, fits
+            )
+            own = stored if matched is query else None
+            grown = new_branch(
+                self, branches, alike, features, matched_all, exits, behind, prepared, own, fits
+            )
+            if grown is not None:
+                branches, new_ports = [*branches, grown[0]], grown[1]
         settled = self._hypotheses.visit(branches, new_ports, odometer_m)
         index = self.map.visit_count - 1
         last = self.map.last_visit
         assert last is not None
-        if last.node != node:  # another branch weighs more at once
-            node = last.node
-            match, fit, ports = fits[node]
+        if last.node != node:  # another branch weighs more at once (or the visit is new)
+            node, arrival, known = last.node, last.arrival_port, last.node in fits
+            match, fit, ports = fits.get(node, (match, None, None))
             assert match is not None
-            best, sim, arrival = node, match.similarity, last.arrival_port
-            exit_ports = None if ports is None else ports.exit_ports
+            best, sim = (node, match.similarity) if known else (best, sim)
+            exit_ports = self._hypotheses.leader.exit_ports
         decision = Decision(
             node=node,
             known=known,
@@ -456,6 +453,7 @@ class Localizer:
             return (
                 0 <= i < len(matches)
                 and i != exclude
+                and not self.map.unused(i)
                 and self._allowed_rotations(i, exits, turn) != ()
                 and self._odometry.near(i)
             )

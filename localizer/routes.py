@@ -98,7 +98,7 @@ def _steps(
 
 
 def _check(topomap: TopoMap, node: int) -> None:
-    if not 0 <= node < topomap.node_count:
+    if not 0 <= node < topomap.node_count or topomap.unused(node):
         raise ValueError(f"node {node} is not in the map (it has {topomap.node_count})")
 
 

@@ -24,6 +24,13 @@ self-loop; the localizer makes them only under the paper's rule
 (``LocalizerConfig.distinct_consecutive`` off), since a pipe joins two different
 junctions.
 
+Node ids can come from a pool shared by competing maps (:mod:`localizer.hypotheses`):
+one map may take a visit as a new junction where another takes it as a known one,
+and the id the first gives it stays *unused* in the second. :meth:`visit` then
+takes an id past :attr:`node_count`, and the ids between are unused: no ports, no
+pipes, listed in the map document as ``{"id": n, "unused": true, "ports": []}`` and
+left out of :attr:`graph` and :attr:`used_node_count`.
+
 When a visit is lost (its sweep was in a damaged part of a log), the robot's path
 is broken there: :meth:`TopoMap.new_traversal` makes the next visit add no edge,
 since the junctions either side of the lost one need not be neighbours.
@@ -91,6 +98,8 @@ class TopoMap:
 
     def __init__(self) -> None:
         self._ports: list[tuple[float, ...] | None] = []
+        #: Pool ids this map leaves unused (another map's new junctions).
+        self._unused: set[int] = set()
         self._edges: dict[Any, MapEdge] = {}
         self._ends: dict[tuple[int, int], MapEdge] = {}
         self._traversed: set[tuple[int, int]] = set()
@@ -112,6 +121,8 @@ class TopoMap:
 
         graph = nx.MultiGraph()
         for n in range(self.node_count):
+            if n in self._unused:
+                continue
             ports = self._ports[n]
             text = "" if ports is None else " ".join(f"{_round(a)}" for a in ports)
             blocked = self.blocked(n)
@@ -158,8 +169,19 @@ class TopoMap:
 
     @property
     def node_count(self) -> int:
-        """Number of junctions in the map."""
+        """Number of node ids in the map: its junctions and the ids it leaves unused
+        (the next new junction's id)."""
         return len(self._ports)
+
+    @property
+    def used_node_count(self) -> int:
+        """Number of junctions in the map (:attr:`node_count` but the unused ids)."""
+        return len(self._ports) - len(self._unused)
+
+    def unused(self, node: int) -> bool:
+        """Whether id ``node`` is one this map leaves unused (another map's junction,
+        or one past its own: the pool may be ahead of it)."""
+        return node in self._unused or node >= len(self._ports)
 
     @property
     def previous(self) -> int | None:
@@ -184,7 +206,8 @@ class TopoMap:
     @property
     def has_ports(self) -> bool:
         """Every node has its ports (and there is at least one node)."""
-        return bool(self._ports) and all(p is not None for p in self._ports)
+        used = [p for n, p in enumerate(self._ports) if n not in self._unused]
+        return bool(used) and all(p is not None for p in used)
 
     def untraversed(self, node: int) -> list[int]:
         """The ports of ``node`` the robot has neither arrived nor left by, nor found
@@ -212,6 +235,20 @@ class TopoMap:
         """Edges in label order, each as first traversed."""
         return list(self._edges.values())
 
+    def copy(self) -> TopoMap:
+        """An independent copy (its edges and visits are immutable records, shared)."""
+        other = TopoMap()
+        other._ports = list(self._ports)
+        other._unused = set(self._unused)
+        other._edges = dict(self._edges)
+        other._ends = dict(self._ends)
+        other._traversed = set(self._traversed)
+        other._blocked = set(self._blocked)
+        other._visits = list(self._visits)
+        other._odometer = list(self._odometer)
+        other._traversal_start = self._traversal_start
+        return other
+
     # -- growing ---------------------------------------------------------------------
 
     def visit(
@@ -220,19 +257,29 @@ class TopoMap:
         ports: tuple[float, ...] | None = None,
         arrival_port: int | None = None,
         odometer_m: float | None = None,
+        *,
+        pooled: bool = False,
     ) -> MapEdge | None:
         """Record that the robot is at ``node``; returns the edge it added, if any.
 
-        ``node`` must be a known node or the next new one (``node_count``); a new
+        ``node`` must be a known node or the next new one (``node_count``); with
+        ``pooled`` (competing maps draw new junctions' ids from one pool) also an
+        unused id or one past ``node_count``, the ids between then unused. A new
         node takes ``ports`` (angles in this visit's frame, in port order).
         ``arrival_port`` is the port the robot came in by; the edge joins it to the
         port the previous visit left by. ``odometer_m`` (distance driven so far)
         gives the edge its length.
         """
-        if not 0 <= node <= self.node_count:
+        if node < 0 or (not pooled and (node > self.node_count or node in self._unused)):
             raise ValueError(f"node {node} is neither known nor the next new node")
+        while self.node_count < node:
+            self._unused.add(self.node_count)
+            self._ports.append(None)
         if node == self.node_count:
             self._ports.append(None if ports is None else tuple(ports))
+        elif node in self._unused:
+            self._unused.discard(node)
+            self._ports[node] = None if ports is None else tuple(ports)
         known_ports = self._ports[node]
         if arrival_port is not None and (
             known_ports is None or not 0 <= arrival_port < len(known_ports)
@@ -318,7 +365,9 @@ class TopoMap:
         """Nodes in id order and edges in label order, as plain JSON-ready data."""
         return {
             "nodes": [
-                {
+                {"id": n, "unused": True, "ports": []}
+                if n in self._unused
+                else {
                     "id": n,
                     "ports": [
                         {"port": p, "angle_rad": _round(a)}
@@ -357,6 +406,14 @@ class TopoMap:
             ports = node.get("ports", [])
             if not isinstance(ports, list):
                 raise ValueError(f"node {i}: ports is not a list")
+            if node.get("unused", False) not in (True, False):
+                raise ValueError(f"node {i}: unused is not true or false")
+            if node.get("unused", False):
+                if ports:
+                    raise ValueError(f"node {i}: an unused id has no ports")
+                m._unused.add(i)
+                m._ports.append(None)
+                continue
             angles = []
             for k, port in enumerate(ports):
                 angle = port.get("angle_rad") if isinstance(port, dict) else None
@@ -386,7 +443,7 @@ class TopoMap:
             node, port = edge.get(end), edge.get(f"{end}_port")
             if not isinstance(node, int) or isinstance(node, bool):
                 raise ValueError(f"edge {k}: {end} is not a node id")
-            if not 0 <= node < self.node_count:
+            if not 0 <= node < self.node_count or node in self._unused:
                 raise ValueError(f"edge {k}: names node {node}, which the map does not have")
             if port is not None:
                 ports = self._ports[node]

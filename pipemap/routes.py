@@ -59,4 +59,6 @@ def route(topomap: TopoMap, start: int, goal: int, name: str = "the map") -> lis
             raise InputError(
                 f"{flag} {node}: no such node in {name} (nodes 0..{topomap.node_count - 1})"
             )
+        if topomap.unused(node):
+            raise InputError(f"{flag} {node}: {name} leaves that id unused (no junction)")
     return plan_route(topomap, start, goal)

@@ -198,6 +198,8 @@ def ports_correct(
         return None
     leads: dict[tuple[int, int], str] = {}  # (map node, port) -> true neighbour
     for node in range(topomap.node_count):
+        if topomap.unused(node):  # an id competing maps gave a junction this one has not
+            continue
         ports = topomap.ports(node)
         if ports is None or node not in created:
             return False

@@ -157,7 +157,8 @@ class ScoreReport:
     def _undecided(self) -> dict[str, Any]:
         """The decisions made among junctions nothing told apart, and how they went."""
         outcomes = {v.visit: v.outcome for v in self.visits}
-        right = sum(outcomes.get(v) == "correct_known" for v in self.alike_visits)
+        # Right as the final map has it: one settled later as a new junction, rightly, is.
+        right = sum(outcomes.get(v) in ("correct_known", "correct_new") for v in self.alike_visits)
         return {
             "visits": list(self.alike_visits),
             "right": right,
@@ -168,7 +169,7 @@ class ScoreReport:
         """The deferred decisions: how the settled ones went, and those left open."""
         outcomes = {v.visit: v.outcome for v in self.visits}
         settled = [v for v in self.deferred_visits if v not in self.open_visits]
-        right = sum(outcomes.get(v) == "correct_known" for v in settled)
+        right = sum(outcomes.get(v) in ("correct_known", "correct_new") for v in settled)
         return {
             "visits": list(self.deferred_visits),
             "right": right,
@@ -333,13 +334,17 @@ def score_replay(
     visits: list[VisitScore] = []
     breaks: list[int] = []  # positions in ``visits`` where the path is broken
     records = result.topomap.visit_records
+    met: set[int] = set()  # the map's nodes of the visits so far
     for index, v in enumerate(result.visits):
         if index in result.breaks:
             breaks.append(len(visits))
         truth = truths.get(v.sweep_id)
         # The map's node for the visit: a deferred decision is scored as settled.
         node = records[index].node if index < len(records) else v.decision.node
-        unknown = v.decision.known and node not in created
+        # Known as the map has it: a visit decided known may have settled as new.
+        known = node in met if index < len(records) else v.decision.known
+        met.add(node)
+        unknown = known and node not in created
         if truth is None or unknown:
             if source.integrity is Integrity.OK and not truth_notes and truth is None:
                 raise LogFormatError(f"{source.name}: no ground truth for sweep {v.sweep_id}")
@@ -359,7 +364,7 @@ def score_replay(
             continue
         d = v.decision
         heading = truth.yaw_rad - _camera_angle(result, v.sweep_id)
-        if d.known:
+        if known:
             right = created[node][0] == truth.node and truth.node in seen
             outcome = "correct_known" if right else "false_merge"
         else:
@@ -369,7 +374,7 @@ def score_replay(
         estimate = true_turn = error = None
         if d.match is not None and d.candidate is not None:
             estimate = d.rotation_rad
-            if outcome == "correct_known" and estimate is not None:
+            if outcome == "correct_known" and estimate is not None and d.candidate in created:
                 # Rotation from this visit's heading to the candidate junction's stored sweep.
                 true_turn = wrap_angle_rad(created[d.candidate][1] - heading)
                 error = wrap_angle_rad(estimate - true_turn)
@@ -378,7 +383,7 @@ def score_replay(
                 visit=visit_label(v.visit_id),
                 true_node=truth.node,
                 predicted_node=node,
-                known=d.known,
+                known=known,
                 outcome=outcome,
                 similarity=None if d.candidate is None else d.similarity,
                 margin=d.margin,
@@ -417,7 +422,7 @@ def score_replay(
         visits=tuple(visits),
         map_correct=mapped and complete,
         true_nodes=len(set(true)),
-        predicted_nodes=result.topomap.node_count,
+        predicted_nodes=result.topomap.used_node_count,
         pairs=pair_statistics(result, truths, fast),
         coverage=coverage,
         ports_correct=ports,

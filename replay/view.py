@@ -152,7 +152,8 @@ class MapLog:
         node = v.decision.node
         if new_traversal:
             topomap.new_traversal()
-        topomap.visit(node, ports if node == topomap.node_count else None, arrival_port)
+        new = node >= topomap.node_count or topomap.unused(node)
+        topomap.visit(node, ports if new else None, arrival_port, pooled=True)
         self._visits.setdefault(node, []).append(visit_label(v.visit_id))
         set_time(rec, v.time_ns)
         count = topomap.node_count

@@ -125,7 +125,7 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     else:
         write_text(target, text)
         out.write(
-            f"replayed {args.log}: {len(result.visits)} visits, {result.topomap.node_count} "
+            f"replayed {args.log}: {len(result.visits)} visits, {result.topomap.used_node_count} "
             f"junctions, map written to {target}\n"
         )
     if results_log is not None:

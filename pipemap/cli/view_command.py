@@ -117,7 +117,7 @@ def live_summary(name: str, summary: LiveSummary, connect: str | None) -> str:
 def _summary(name: str, result: ReplayResult) -> str:
     return (
         f"{name}: {result.sweeps} sweeps, {result.images} images, {len(result.visits)} "
-        f"visits, {result.topomap.node_count} junctions"
+        f"visits, {result.topomap.used_node_count} junctions"
     )
 
 

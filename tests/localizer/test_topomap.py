@@ -615,3 +615,49 @@ def test_a_bad_blocked_value_is_refused() -> None:
     doc["nodes"][0]["ports"][1]["blocked"] = "yes"
     with pytest.raises(ValueError, match="blocked"):
         TopoMap.from_dict(doc)
+
+
+def test_a_pooled_id_past_the_next_leaves_the_ids_between_unused() -> None:
+    m = TopoMap()
+    m.visit(0, (0.0, 3.1))
+    m.depart(1)
+    m.visit(2, (0.0, 2.0, -2.0), 0, pooled=True)
+    assert m.node_count == 3
+    assert m.used_node_count == 2
+    assert m.unused(1) and not m.unused(2)
+    assert sorted(m.graph.nodes) == [0, 2]
+    assert m.has_ports
+    doc = m.to_dict()
+    assert doc["nodes"][1] == {"id": 1, "unused": True, "ports": []}
+    again = TopoMap.from_dict(doc)
+    assert again.to_json() == m.to_json()
+    assert again.unused(1)
+    with pytest.raises(ValueError):
+        m.visit(1)  # an unused id only as a pooled one
+    m.visit(1, (0.0,), pooled=True)
+    assert not m.unused(1)
+    assert m.ports(1) == (0.0,)
+    assert m.used_node_count == 3
+
+
+def test_a_document_that_joins_an_unused_id_is_refused() -> None:
+    doc = {
+        "nodes": [{"id": 0, "ports": [{"port": 0, "angle_rad": 0.0}]}, {"id": 1, "unused": True}],
+        "edges": [{"u": 0, "u_port": 0, "v": 1, "v_port": None, "label": 1}],
+    }
+    with pytest.raises(ValueError, match="does not have"):
+        TopoMap.from_dict(doc)
+
+
+def test_a_copy_grows_apart_from_its_original() -> None:
+    m = TopoMap()
+    m.visit(0, (0.0, 3.0))
+    m.depart(1)
+    twin = m.copy()
+    assert twin.to_json() == m.to_json() and twin.visits == m.visits
+    twin.visit(2, (0.0, 2.0, -2.0), 0, 1.0, pooled=True)
+    twin.block()
+    assert m.node_count == 1 and m.visits == (0,) and m.edges() == []
+    assert m.untraversed(0) == [0] and twin.unused(1) and not m.blocked(0)
+    m.visit(1, (1.0,), 0)
+    assert twin.visits == (0, 2) and twin.ports(1) is None

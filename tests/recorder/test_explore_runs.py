@@ -273,6 +273,20 @@ def test_route_with_an_unknown_node_is_one_line_and_exit_2(
     assert len(done.stderr.splitlines()) == 1 and message in done.stderr
 
 
+def test_route_to_an_id_the_map_leaves_unused_is_one_line_and_exit_2(tmp_path: Path) -> None:
+    # Competing maps draw junction ids from one pool; the map that won may leave one
+    # unused (docs/lookalike.md). It is no junction to route to.
+    doc = json.loads((RECORDINGS / "random8_loops.map.json").read_text())
+    unused = len(doc["nodes"])
+    doc["nodes"].append({"id": unused, "unused": True, "ports": []})
+    path = tmp_path / "pooled.json"
+    path.write_text(json.dumps(doc))
+    done = pipemap("route", str(path), "--from", "0", "--to", str(unused))
+    assert done.returncode == 2 and done.stdout == ""
+    assert len(done.stderr.splitlines()) == 1
+    assert f"--to {unused}: {path} leaves that id unused" in done.stderr
+
+
 def _map_without_ports(tmp_path: Path) -> Path:
     doc = json.loads((RECORDINGS / "random8_loops.map.json").read_text())
     for node in doc["nodes"]:

@@ -57,11 +57,22 @@ def test_score_counts_deferred_decisions_right_wrong_and_open() -> None:
     assert report.deferred_visits == () and report.open_visits == ()
     known = [v.visit for v in report.visits if v.outcome == "correct_known"]
     new = [v.visit for v in report.visits if v.outcome == "correct_new"]
-    flagged = replace(report, deferred_visits=(known[0], new[1], known[1]), open_visits=(known[1],))
+    # A deferred visit is right when it settled as the junction it is, known or new
+    # (a look-alike's first visit kept apart from its twin); one taken for another
+    # junction is wrong.
+    wrong = tuple(
+        replace(v, outcome="false_merge") if v.visit == known[2] else v for v in report.visits
+    )
+    flagged = replace(
+        report,
+        visits=wrong,
+        deferred_visits=(known[0], new[1], known[2], known[1]),
+        open_visits=(known[1],),
+    )
     doc = flagged.document(with_latency=False)
     assert doc["deferred"] == {
-        "visits": [known[0], new[1], known[1]],
-        "right": 1,
+        "visits": [known[0], new[1], known[2], known[1]],
+        "right": 2,
         "wrong": 1,
         "open": [known[1]],
     }
