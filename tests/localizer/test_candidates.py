@@ -51,8 +51,10 @@ def test_the_candidates_are_the_best_allowed_of_every_known_junction(
         return i in near
 
     monkeypatch.setattr(localizer._odometry, "near", is_near)
-    # No ports to compare (the map of this test has no nodes).
+    # No ports to compare, and no id of the pool to leave unused: the map of this
+    # test has no nodes.
     monkeypatch.setattr(localizer, "_allowed_rotations", lambda *args: None)
+    monkeypatch.setattr(localizer.map, "unused", lambda i: False)
     monkeypatch.setattr(localizer, "_fit", lambda i, *args: fitted.append(i))
     rejected: list[tuple[int, str]] = []
     assert localizer._verified(None, matches, 0.0, None, rejected) is None  # type: ignore[arg-type]
