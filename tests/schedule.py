@@ -36,7 +36,7 @@ SECONDS: dict[str, float] = {
     "tests/batch/test_batch_ray.py": 323.0,
     "tests/test_docs_run.py::TestPage_docs_simulator_2": 315.0,
     "tests/replay/test_view.py": 269.0,
-    "tests/replay/test_replay.py": 231.0,
+    "tests/replay/test_replay.py": 195.0,
     "tests/test_faults.py": 230.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_3": 227.0,
     "tests/test_experiment.py": 190.0,
