@@ -44,7 +44,7 @@ SECONDS: dict[str, float] = {
     "tests/recorder/test_explore_runs.py": 167.0,
     "tests/test_docs_run.py::TestPage_docs_performance": 156.0,
     "tests/test_docs_run.py::TestPage_docs_ros2": 136.0,
-    "tests/recorder/test_truth_poisoning.py": 95.0,
+    "tests/recorder/test_truth_poisoning.py": 89.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_1": 94.0,
     "tests/test_docs_run.py::TestPage_docs_stuck": 79.0,
     "tests/ros2/test_import.py": 77.0,
