@@ -32,7 +32,7 @@ from xdist.scheduler import LoadScopeScheduling
 #: their CPU seconds (user + system) after against before, each measured alone.
 SECONDS: dict[str, float] = {
     "tests/recorder/test_record_command.py": 508.0,
-    "tests/sim/test_controller.py": 436.0,
+    "tests/sim/test_controller.py": 431.0,
     "tests/batch/test_batch_ray.py": 323.0,
     "tests/test_docs_run.py::TestPage_docs_simulator_2": 315.0,
     "tests/replay/test_view.py": 269.0,

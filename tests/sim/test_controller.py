@@ -227,8 +227,9 @@ def test_the_right_hand_rule_finds_its_start_within_the_configured_radius(paper_
     """The explorer's ``start_radius_m`` and ``drift_per_m`` are the rule's: with both
     at 0 no return is close enough to be the start (dead reckoning is never exact),
     so the robot goes round again until the time limit, where the defaults stop it
-    back at S after 13 sweeps (the tests above)."""
-    exact = ExplorerConfig(start_radius_m=0.0, drift_per_m=0.0, time_limit_ns=600 * 10**9)
+    back at S after 13 sweeps (the tests above). 450 s: the tour and the first sweeps
+    of the second round (14 sweeps at 420 s)."""
+    exact = ExplorerConfig(start_radius_m=0.0, drift_per_m=0.0, time_limit_ns=450 * 10**9)
     result = autonomous_run(paper_world, TINY, seed=1, config=exact)
     assert result.status is RunStatus.TIME_LIMIT
     assert len(result.sweeps) > 13
