@@ -32,11 +32,11 @@ from xdist.scheduler import LoadScopeScheduling
 #: their CPU seconds (user + system) after against before, each measured alone.
 SECONDS: dict[str, float] = {
     "tests/recorder/test_record_command.py": 508.0,
-    "tests/sim/test_controller.py": 478.0,
+    "tests/sim/test_controller.py": 431.0,
     "tests/batch/test_batch_ray.py": 323.0,
     "tests/test_docs_run.py::TestPage_docs_simulator_2": 315.0,
     "tests/replay/test_view.py": 269.0,
-    "tests/replay/test_replay.py": 231.0,
+    "tests/replay/test_replay.py": 195.0,
     "tests/test_faults.py": 230.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_3": 227.0,
     "tests/test_experiment.py": 190.0,
@@ -44,7 +44,7 @@ SECONDS: dict[str, float] = {
     "tests/recorder/test_explore_runs.py": 167.0,
     "tests/test_docs_run.py::TestPage_docs_performance": 156.0,
     "tests/test_docs_run.py::TestPage_docs_ros2": 136.0,
-    "tests/recorder/test_truth_poisoning.py": 95.0,
+    "tests/recorder/test_truth_poisoning.py": 89.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_1": 94.0,
     "tests/test_docs_run.py::TestPage_docs_stuck": 79.0,
     "tests/ros2/test_import.py": 77.0,

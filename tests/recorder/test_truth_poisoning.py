@@ -130,6 +130,23 @@ def _record(
     record_run(path, settings, network, __version__, inline=True)
 
 
+@pytest.fixture(scope="module")
+def clean_run(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    """The unpoisoned run of a condition, threshold and seed, recorded once for the
+    module: the poisoning tests compare against it and the exit-scan tests read it."""
+    made: dict[tuple[Condition, float, int], Path] = {}
+
+    def run(condition: Condition, threshold: float = 0.36, seed: int = 2) -> Path:
+        key = (condition, threshold, seed)
+        if key not in made:
+            path = tmp_path_factory.mktemp("clean") / "clean.mcap"
+            _record(path, condition, None, threshold, seed)
+            made[key] = path
+        return made[key]
+
+    return run
+
+
 def _topics(path: Path, prefix: str) -> list[tuple[str, int, bytes]]:
     return [
         (m.topic, m.log_time_ns, bytes(m.data))
@@ -149,10 +166,13 @@ def _topics(path: Path, prefix: str) -> list[tuple[str, int, bytes]]:
     ],
 )
 def test_poisoned_truth_changes_no_robot_message_and_no_decision(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, condition: Condition, threshold: float
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    clean_run,  # type: ignore[no-untyped-def]
+    condition: Condition,
+    threshold: float,
 ) -> None:
-    clean, poisoned = tmp_path / "clean.mcap", tmp_path / "poisoned.mcap"
-    _record(clean, condition, None, threshold)
+    clean, poisoned = clean_run(condition, threshold), tmp_path / "poisoned.mcap"
     with monkeypatch.context() as patch:
         _record(poisoned, condition, patch, threshold)
     robot = _topics(clean, "/robot/")
@@ -177,12 +197,11 @@ def test_poisoned_truth_changes_no_robot_message_and_no_decision(
 # 13) and E (visit 10): turning there, its nose swings through the cap, and the scan
 # once saw an exit through it (``ExplorerConfig.touch_m``).
 @pytest.mark.parametrize("seed", [2, 7])
-def test_a_placed_robot_logs_its_own_exit_scan(tmp_path: Path, seed: int) -> None:
+def test_a_placed_robot_logs_its_own_exit_scan(clean_run, seed: int) -> None:  # type: ignore[no-untyped-def]
     """A ``noise`` run holds the robot's range readings at every junction, and each
     visit's exits are what its scan found: the paper network's pipes, to within the
     scan's error, relative to the heading it arrived with."""
-    path = tmp_path / "noise.mcap"
-    _record(path, Condition.NOISE, None, seed=seed)
+    path = clean_run(Condition.NOISE, seed=seed)
     network = build_network("paper")
     scans: dict[int, int] = {}
     exits: dict[int, list[float]] = {}
