@@ -37,7 +37,7 @@ def _run_alone(resolution: int, with_localizer: bool) -> float:
     config = ExplorerConfig()
     online = OnlineLocalizer(Localizer(), camera.fov_rad)
     explore = Explore.MAP if with_localizer else Explore.RIGHT_HAND
-    policy = make_policy(explore, online, config.start_radius_m, config.drift_per_m)
+    policy = make_policy(explore, online, config)
     start = time.perf_counter()
     with World(network, seed=0) as world:
         autonomous_run(

@@ -29,7 +29,10 @@ explorer watches for what that looks like, and counts it:
   junction with as many pipes, or a junction declared known far from where the
   robot first saw it. The tolerance grows with the distance driven, as the
   right-hand rule's search for the start does, and for a known junction also with
-  the distance driven since its first visit (a long loop's drift).
+  the distance driven since its first visit (a long loop's drift) and with the
+  path's moment since then (the heading's drift, :mod:`localizer.odometry`). A
+  junction declared new is checked against the capped tolerance only: two places
+  are taken for one only where the dead reckoning is sure.
 
 After ``max_inconsistencies`` junctions that show any of these the explorer stops with the status
 ``map inconsistent`` rather than wander: a map it cannot trust cannot say what is
@@ -40,6 +43,7 @@ log, which makes the same decisions from ``/robot``, makes the same choices.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 from collections.abc import Callable, Sequence
@@ -47,6 +51,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from pipemap.localizer.decision import Decision
+from pipemap.localizer.odometry import PathMark, PathMoment, scaled
 from pipemap.localizer.routes import RouteStep, describe_step, nearest_route, plan_route
 from pipemap.localizer.topomap import TopoMap
 
@@ -113,13 +118,27 @@ class ExploreConfig:
     #: of the distance driven since its first visit (the localizer's
     #: ``odometry_loop_drift_per_m``): a long loop drifts past the limit above.
     loop_drift_per_m: float = 0.004
+    #: ... and while it lies within ``odometry_radius_m`` plus this times the path's
+    #: moment since its first visit (the localizer's ``odometry_heading_drift_per_m``):
+    #: the heading's drift over long pipes.
+    heading_drift_per_m: float = 0.0006
 
     def __post_init__(self) -> None:
         if self.max_inconsistencies < 1:
             raise ValueError("max_inconsistencies must be >= 1")
         limits = (self.odometry_radius_m, self.drift_per_m, self.odometry_limit_m)
-        if min(*limits, self.loop_drift_per_m) < 0.0:
+        if min(*limits, self.loop_drift_per_m, self.heading_drift_per_m) < 0.0:
             raise ValueError("odometry tolerances must be >= 0")
+
+    def drifting(self, factor: float) -> ExploreConfig:
+        """These settings for a robot whose odometry drifts ``factor`` times as much
+        (``record --odometry-drift``): the drift per metre, the limit and the loop's
+        and the heading's allowances ``factor`` times as wide, as
+        :func:`localizer.odometry.drift_allowed` widens the localizer's."""
+        if factor == 1.0:
+            return self
+        fields = ("drift_per_m", "odometry_limit_m", "loop_drift_per_m", "heading_drift_per_m")
+        return dataclasses.replace(self, **scaled(self, factor, fields))
 
 
 @dataclass(frozen=True)
@@ -147,6 +166,9 @@ class MapExplorer:
     _positions: dict[int, tuple[float, float]] = field(default_factory=dict)
     #: The odometer at each junction's first visit.
     _odometers: dict[int, float] = field(default_factory=dict)
+    #: The path driven, and where on it each junction was first visited.
+    _path: PathMoment = field(default_factory=PathMoment)
+    _marks: dict[int, PathMark] = field(default_factory=dict)
     _expected: tuple[int, int | None] | None = None
     _goal: int | None = None
     #: The live maps (``Localizer.hypothesis_exits``): while more than one lives, an
@@ -177,6 +199,7 @@ class MapExplorer:
         if last is not None and last.conflict is not None:
             found.append(last.conflict)
         tolerance = self._tolerance_m(odometer_m)
+        self._path.add(here, odometer_m)
         ports = topomap.ports(node)
         if not decision.known:
             for k, (x, y) in sorted(self._positions.items()):
@@ -187,18 +210,32 @@ class MapExplorer:
                         f"new junction {node} is {off:.2f} m from known junction {k} by odometry"
                     )
                     break
-            self._positions[node] = here
-            self._odometers[node] = odometer_m
+            self._first_visit(node, here, odometer_m)
         elif node in self._positions:
             x, y = self._positions[node]
             off = math.hypot(here[0] - x, here[1] - y)
-            loop_m = self.config.loop_drift_per_m * (odometer_m - self._odometers[node])
-            if off > max(tolerance, loop_m):
+            if off > max(tolerance, self._drift_since_m(node, odometer_m)):
                 found.append(f"junction {node} is {off:.2f} m from where it was by odometry")
         else:
-            self._positions[node] = here
-            self._odometers[node] = odometer_m
+            self._first_visit(node, here, odometer_m)
         return found
+
+    def _first_visit(self, node: int, here: tuple[float, float], odometer_m: float) -> None:
+        self._positions[node] = here
+        self._odometers[node] = odometer_m
+        if self._path.mark is not None:
+            self._marks[node] = self._path.mark
+
+    def _drift_since_m(self, node: int, odometer_m: float) -> float:
+        """How far known junction ``node`` may be from where it was by the drift since
+        its first visit: over the distance driven, and by the heading's drift over the
+        path's moment (:class:`localizer.odometry.PathMoment`)."""
+        c = self.config
+        drift = c.loop_drift_per_m * (odometer_m - self._odometers[node])
+        mark = self._marks.get(node)
+        if mark is not None:
+            drift = max(drift, c.odometry_radius_m + c.heading_drift_per_m * self._path.since(mark))
+        return drift
 
     def step(
         self, topomap: TopoMap, decision: Decision, x_m: float, y_m: float, odometer_m: float

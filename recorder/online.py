@@ -193,13 +193,13 @@ class MapPolicy:
 def make_policy(
     explore: Explore,
     online: OnlineLocalizer,
-    start_radius_m: float,
-    drift_per_m: float,
+    robot: ExplorerConfig,
     config: ExploreConfig | None = None,
 ) -> ExitPolicy:
-    """The controller's policy for ``explore``."""
+    """The controller's policy for ``explore``: the right-hand rule with the robot's
+    search for its start, or the map's explorer with ``config``."""
     if explore is Explore.RIGHT_HAND:
-        return RightHandPolicy(start_radius_m, drift_per_m)
+        return RightHandPolicy(robot.start_radius_m, robot.drift_per_m)
     explorer = MapExplorer(config if config is not None else ExploreConfig())
     explorer.rivals = online.localizer.hypothesis_exits
     return MapPolicy(online, explorer)

@@ -437,10 +437,8 @@ def record_run(
         ) as world:
             writer.send()  # the file is open before the run starts
             if settings.condition is Condition.AUTONOMOUS:
-                explorer = settings.explorer_config()
-                policy = make_policy(
-                    settings.explore, sink.online, explorer.start_radius_m, explorer.drift_per_m
-                )
+                explorer, plan = settings.explorer_config(), settings.explore_config()
+                policy = make_policy(settings.explore, sink.online, explorer, plan)
                 robot_probes = RobotProbes(camera.fov_rad) if settings.probe_moves else None
                 if robot_probes is not None:
                     sink.online.probes = robot_probes  # active vision: the robot moves

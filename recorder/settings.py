@@ -23,7 +23,7 @@ from pipemap.defaults import (
     SEED,
 )
 from pipemap.errors import InputError, SimError
-from pipemap.localizer import DEFAULT_THRESHOLD
+from pipemap.localizer import DEFAULT_THRESHOLD, ExploreConfig
 from pipemap.recorder.messages import ImageEncoding
 from pipemap.recorder.online import Explore
 from pipemap.recorder.topics import FORMAT_VERSION
@@ -207,6 +207,11 @@ class RecordSettings:
             align_sweeps=self.align_sweeps,
             tilt_rad=self.tilt_rad,
         )
+
+    def explore_config(self) -> ExploreConfig:
+        """The map-driven explorer's settings: its odometry checks as wide as the
+        robot's drift (``odometry_drift``), as the localizer's are."""
+        return ExploreConfig().drifting(self.odometry_drift)
 
     def sim_config(self) -> SimConfig:
         """The placement conditions' settings."""

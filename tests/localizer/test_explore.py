@@ -44,6 +44,9 @@ class Walk:
     odometer_m: float = 0.0
     #: Dead reckoning drifts east by this much per metre driven.
     drift_per_m: float = 0.0
+    #: Dead reckoning's heading drifts by this much (rad) per metre driven: it
+    #: integrates each pipe with a heading error that grows as the robot drives.
+    heading_drift_per_m: float = 0.0
     #: Pipes (sorted label pairs) the robot cannot get through: it gives them up.
     blocked_pipes: frozenset[tuple[str, str]] = frozenset()
     gave_up: list[tuple[str, str]] = field(default_factory=list)
@@ -53,6 +56,21 @@ class Walk:
         self.first_heading: dict[int, float] = {}
         self.label_of: dict[int, str] = {}
         self.node_of: dict[str, int] = {}
+        self.dead_reckoning: tuple[float, float] | None = None
+
+    def _drive(self, a: str, b: str) -> None:
+        """Dead reckoning along the pipe from ``a`` to ``b`` (heading drift only)."""
+        net = self.network
+        assert self.dead_reckoning is not None
+        x, y = self.dead_reckoning
+        length = net.length_m(a, b)
+        heading = net.pipe_headings(a)[b]
+        steps = 50
+        for k in range(steps):
+            error = self.heading_drift_per_m * (self.odometer_m + (k + 0.5) * length / steps)
+            x += length / steps * math.cos(heading + error)
+            y += length / steps * math.sin(heading + error)
+        self.dead_reckoning = (x, y)
 
     def _decide(self, label: str, heading: float, exits: list[float]) -> Decision:
         m = self.topomap
@@ -100,8 +118,12 @@ class Walk:
             decision = self._decide(label, heading, exits)
             self.path.append(label)
             node = net.node(label)
-            x = node.x_m + self.drift_per_m * self.odometer_m
-            step = self.explorer.step(self.topomap, decision, x, node.y_m, self.odometer_m)
+            x, y = node.x_m + self.drift_per_m * self.odometer_m, node.y_m
+            if self.heading_drift_per_m:
+                if self.dead_reckoning is None:
+                    self.dead_reckoning = (node.x_m, node.y_m)
+                x, y = self.dead_reckoning
+            step = self.explorer.step(self.topomap, decision, x, y, self.odometer_m)
             if step.stop is not None:
                 return step.stop
             assert step.port is not None and decision.exit_ports is not None
@@ -111,12 +133,14 @@ class Walk:
                 assert len(self.gave_up) < 50, "the explorer keeps choosing blocked pipes"
                 self.gave_up.append((label, leave))
                 self.topomap.block()
-                step = self.explorer.blocked(self.topomap, decision, x, node.y_m, self.odometer_m)
+                step = self.explorer.blocked(self.topomap, decision, x, y, self.odometer_m)
                 if step.stop is not None:
                     return step.stop
                 assert step.port is not None
                 leave = neighbours[decision.exit_ports.index(step.port)]
                 self.topomap.depart(step.port)
+            if self.heading_drift_per_m:
+                self._drive(label, leave)
             self.odometer_m += net.length_m(label, leave)
             heading = headings[leave]
             label = leave
@@ -299,6 +323,43 @@ def test_a_known_junction_may_drift_by_the_loop_allowance() -> None:
     assert "from where it was by odometry" in walks[0.0].explorer.inconsistencies[0]
 
 
+#: The heading drift of ``random:200`` seed 4711's dead reckoning on pipes of 1-20 m.
+MEASURED_RAD_PER_M = 3.8e-4
+
+
+def _long_pipes(heading_drift_per_m: float, config: ExploreConfig) -> Walk:
+    """A walk of ``grid:3x3`` with 20 m pipes (loops of 80 m) whose dead reckoning's
+    heading drifts by ``heading_drift_per_m``."""
+    network = build_network("grid:3x3", spacing_m=20.0)
+    return Walk(network, heading_drift_per_m=heading_drift_per_m, config=config)
+
+
+def test_a_known_junction_may_drift_by_the_heading_allowance() -> None:
+    walks = {
+        heading: _long_pipes(MEASURED_RAD_PER_M, ExploreConfig(heading_drift_per_m=heading))
+        for heading in (ExploreConfig().heading_drift_per_m, 0.0)
+    }
+    ends = {heading: walk.run() for heading, walk in walks.items()}
+    assert ends == {0.0006: ExploreEnd.FINISHED, 0.0: ExploreEnd.INCONSISTENT}
+    assert "from where it was by odometry" in walks[0.0].explorer.inconsistencies[0]
+    assert set(_pipes(walks[0.0006].network)) <= set(walks[0.0006].traversals())
+
+
+def test_the_heading_allowance_widens_with_the_robot_s_drift() -> None:
+    # --odometry-drift 4: the robot's gyro is 4 times as poor, and so is its heading.
+    poor = 4.0 * MEASURED_RAD_PER_M
+    assert _long_pipes(poor, ExploreConfig()).run() is ExploreEnd.INCONSISTENT
+    assert _long_pipes(poor, ExploreConfig().drifting(4.0)).run() is ExploreEnd.FINISHED
+    wide = ExploreConfig().drifting(4.0)
+    plain = ExploreConfig()
+    assert (wide.drift_per_m, wide.odometry_limit_m, wide.loop_drift_per_m) == pytest.approx(
+        (4 * plain.drift_per_m, 4 * plain.odometry_limit_m, 4 * plain.loop_drift_per_m)
+    )
+    assert wide.heading_drift_per_m == pytest.approx(4 * plain.heading_drift_per_m)
+    assert wide.odometry_radius_m == plain.odometry_radius_m
+    assert ExploreConfig().drifting(1.0) == plain
+
+
 @pytest.mark.parametrize("limit", [1, 2])
 def test_the_run_stops_at_the_configured_number_of_inconsistencies(limit: int) -> None:
     walk = Walk(
@@ -343,6 +404,7 @@ def test_the_odometry_tolerance_is_the_configured_one() -> None:
         {"drift_per_m": -1.0},
         {"odometry_limit_m": -1.0},
         {"loop_drift_per_m": -1.0},
+        {"heading_drift_per_m": -1.0},
     ):
         with pytest.raises(ValueError):
             ExploreConfig(**bad)  # type: ignore[arg-type]

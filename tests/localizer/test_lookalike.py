@@ -69,11 +69,13 @@ def test_a_revisit_within_the_drift_tolerance_is_recognised(
 
 def _loop(config: LocalizerConfig, paper_sets: dict[str, PaperSet], off_m: float) -> bool:
     """Whether a junction first seen at odometer 0 is recognised after 252 m of
-    driving, ``off_m`` from where the dead reckoning put it then."""
+    driving, ``off_m`` from where the dead reckoning put it then. The one visit
+    between is 2 m away: the path's moment is small, so the heading's allowance
+    (``odometry_heading_drift_per_m``) stays under 0.6 m and the loop's rules."""
     images = paper_sets["1"].images
     loc = Localizer(config)
     loc.localize(images, odometer_m=0.0, position_m=(0.0, 0.0))
-    loc.localize(paper_sets["4"].images, odometer_m=126.0, position_m=(40.0, 0.0))
+    loc.localize(paper_sets["4"].images, odometer_m=126.0, position_m=(2.0, 0.0))
     return loc.localize(images, odometer_m=252.0, position_m=(0.0, off_m)).known
 
 
@@ -86,6 +88,50 @@ def test_a_long_loop_may_drift_past_the_limit(paper_sets: dict[str, PaperSet]) -
     assert not _loop(LocalizerConfig(), paper_sets, 2.0)
 
 
+#: A loop round a 40 m square of 20 m pipes, a junction at each corner and mid-side,
+#: as the dead reckoning had it with a heading drift of 3.8e-4 rad a metre (as on
+#: ``random:200`` seed 4711 with pipes of 1-20 m; ``tests/localizer/test_odometry.py``
+#: integrates it): back at the start after 160 m, 1.71 m from where it began.
+SQUARE_DEAD_RECKONED = [
+    (0.0, 0.0),
+    (20.000, 0.076),
+    (39.998, 0.304),
+    (39.618, 20.300),
+    (39.087, 40.293),
+    (19.098, 39.609),
+    (-0.884, 38.774),
+    (0.103, 18.798),
+    (1.243, -1.169),
+]
+
+
+def _square(
+    config: LocalizerConfig, paper_sets: dict[str, PaperSet], end: tuple[float, float]
+) -> bool:
+    """Whether the start is recognised at the end of :data:`SQUARE_DEAD_RECKONED`
+    with the last position replaced by ``end`` (the visits between are other
+    junctions, 20 m apart)."""
+    others = [paper_sets[name].images for name in ("2", "3", "4", "10")]
+    loc = Localizer(config)
+    positions = [*SQUARE_DEAD_RECKONED[:-1], end]
+    for k, position in enumerate(positions):
+        images = paper_sets["1"].images if k in (0, len(positions) - 1) else others[k % 4]
+        decision = loc.localize(images, odometer_m=20.0 * k, position_m=position)
+    return decision.known
+
+
+def test_a_loop_of_long_pipes_closes_despite_the_heading_s_drift(
+    paper_sets: dict[str, PaperSet],
+) -> None:
+    # 1.71 m from the start, past max(0.6 m, 0.4 % of 160 m): the old tolerances
+    # make the revisit a false new junction.
+    end = SQUARE_DEAD_RECKONED[-1]
+    assert _square(LocalizerConfig(), paper_sets, end)
+    assert not _square(LocalizerConfig(odometry_heading_drift_per_m=0.0), paper_sets, end)
+    # The allowance follows the path: 4 m off is farther than its 3 m.
+    assert not _square(LocalizerConfig(), paper_sets, (4.0, 0.0))
+
+
 def test_without_positions_nothing_changes(paper_sets: dict[str, PaperSet]) -> None:
     images = paper_sets["1"].images
     loc = Localizer()
@@ -96,7 +142,13 @@ def test_without_positions_nothing_changes(paper_sets: dict[str, PaperSet]) -> N
 
 @pytest.mark.parametrize(
     "field",
-    ["odometry_radius_m", "odometry_drift_per_m", "odometry_limit_m", "odometry_loop_drift_per_m"],
+    [
+        "odometry_radius_m",
+        "odometry_drift_per_m",
+        "odometry_limit_m",
+        "odometry_loop_drift_per_m",
+        "odometry_heading_drift_per_m",
+    ],
 )
 def test_a_negative_tolerance_is_refused(field: str) -> None:
     with pytest.raises(LocalizerError, match="odometry"):

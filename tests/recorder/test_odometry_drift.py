@@ -64,3 +64,36 @@ def test_a_bad_odometry_drift_gets_one_line_and_exit_2(
     reason = "not a number" if value == "poor" else "not in [1, 10]"
     assert f"argument --odometry-drift: {reason}" in err and value in err
     assert list(tmp_path.iterdir()) == []
+
+
+class _Stop(Exception):
+    """Ends a run before the robot moves."""
+
+
+def test_the_map_explorer_allows_the_drift_the_run_is_recorded_with(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from pipemap.localizer import ExploreConfig
+    from pipemap.recorder import session
+    from pipemap.recorder.online import MapPolicy
+    from pipemap.sim.episode import Condition
+
+    policies = []
+
+    def stop(world, camera, seed, policy=None, **_):  # type: ignore[no-untyped-def]
+        policies.append(policy)
+        raise _Stop
+
+    monkeypatch.setattr(session, "autonomous_run", stop)
+    network = build_network("paper")
+    for factor in (1.0, 4.0):
+        settings = RecordSettings(
+            "paper", condition=Condition.AUTONOMOUS, resolution_px=32, odometry_drift=factor
+        )
+        assert settings.explore_config() == ExploreConfig().drifting(factor)
+        with pytest.raises(_Stop):
+            session.record_run(None, settings, network, "test")
+    assert all(isinstance(p, MapPolicy) for p in policies)
+    configs = [p.explorer.config for p in policies]  # type: ignore[union-attr]
+    assert configs == [ExploreConfig(), ExploreConfig().drifting(4.0)]
+    assert configs[1].heading_drift_per_m == pytest.approx(4 * configs[0].heading_drift_per_m)
