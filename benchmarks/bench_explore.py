@@ -5,6 +5,7 @@
                                        [--alike F] [--first K] [--count N]
                                        [--no-odometry-check] [--no-probe-moves]
                                        [--tilt-deg DEG] [--obstacles N] [--hypotheses K]
+                                       [--keep DIR]
 
 Each run is ``pipemap record`` (autonomous, the online localizer choosing exits from
 its map) into a temporary log, then ``pipemap score`` of that log. One line per run:
@@ -34,7 +35,10 @@ line's ``deferred`` counts the decisions the localizer kept open among look-alik
 ``--no-probe-moves`` records with the robot making none of the probe moves active
 vision asks for (``pipemap record --no-probe-moves``); ``--tilt-deg`` and
 ``--obstacles`` are ``pipemap record``'s. Each line ends with the probe sweeps the
-robot made of those the localizer asked for.
+robot made of those the localizer asked for. ``--keep DIR`` keeps each run's log as
+``DIR/<spec>-seed<k>[-from-<start>].mcap`` (``random:16`` seed 3: ``random16-seed3.mcap``)
+instead of recording into a temporary folder, to be replayed and scored again later
+(``pipemap score LOG --hypotheses 1``).
 """
 
 from __future__ import annotations
@@ -128,6 +132,7 @@ def run_case(
     tilt_deg: float = 0.0,
     obstacles: int = 0,
     hypotheses: int = 8,
+    keep: Path | None = None,
 ) -> Outcome:
     """Record ``case``, replay and score it."""
     from pipemap.localizer import LocalizerConfig
@@ -152,7 +157,7 @@ def run_case(
     )
     began = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "run.mcap"
+        path = Path(tmp) / "run.mcap" if keep is None else keep / log_name(case)
         recorded = record_run(path, settings, network, __version__)
         source = FileSource(path)
         config = LocalizerConfig(odometry_check=odometry_check, hypotheses=hypotheses)
@@ -198,6 +203,12 @@ def run_case(
         deferred=len(report.deferred_visits),
         still_open=len(report.open_visits),
     )
+
+
+def log_name(case: Case) -> str:
+    """The file name ``--keep`` gives a run's log."""
+    start = "" if case.start is None else f"-from-{case.start}"
+    return f"{case.spec.replace(':', '')}-seed{case.seed}{start}.mcap"
 
 
 def _scan_error(result, source, truth) -> float:  # type: ignore[no-untyped-def]
@@ -271,7 +282,12 @@ def main() -> int:
     parser.add_argument(
         "--hypotheses", type=int, default=8, help="the localizer's live maps at most (8)"
     )
+    parser.add_argument(
+        "--keep", type=Path, default=None, metavar="DIR", help="keep each run's log in DIR"
+    )
     args = parser.parse_args()
+    if args.keep is not None:
+        args.keep.mkdir(parents=True, exist_ok=True)
     todo = cases(args.suite)[args.first :]
     todo = todo if args.count is None else todo[: args.count]
     print(
@@ -296,6 +312,7 @@ def main() -> int:
                 args.tilt_deg,
                 args.obstacles,
                 args.hypotheses,
+                args.keep,
             )
             for c in todo
         ]
