@@ -11,35 +11,26 @@ from pathlib import Path
 
 import pytest
 
-from pipemap.recorder import RecordSettings, Topic, read_log, record_run, schemas
-from pipemap.recorder.messages import decision_message
-from pipemap.replay import FileSource, replay
-from pipemap.sim.network import build_network
 from tests.cli.common import run
+from tests.recorder.drifting import (
+    assert_replay_makes_the_online_decisions,
+    online_decisions,
+    record_drifting,
+)
 
 #: The run: found by recording small networks at these settings (docs/lookalike.md).
-NETWORK, SEED, DRIFT, RESOLUTION = "grid:3x4", 3, 10.0, 96
+NETWORK, SEED = "grid:3x4", 3
 
 
 @pytest.fixture(scope="module")
 def deferring_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("deferred") / "run.mcap"
-    settings = RecordSettings(
-        NETWORK, seed=SEED, resolution_px=RESOLUTION, alike=1.0, odometry_drift=DRIFT
-    )
-    record_run(path, settings, build_network(NETWORK, seed=SEED), "test", inline=True)
-    return path
-
-
-def _online(path: Path) -> list[schemas.Decision]:
-    contents = read_log(path, keep=lambda topic: topic == Topic.DECISION)
-    return [schemas.Decision.FromString(m.data) for m in contents.messages]
+    return record_drifting(tmp_path_factory.mktemp("deferred") / "run.mcap", NETWORK, SEED)
 
 
 def test_the_online_decisions_defer_a_visit_and_settle_it_right(
     deferring_run: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
-    online = _online(deferring_run)
+    online = online_decisions(deferring_run)
     deferred = [k for k, m in enumerate(online) if m.deferred]
     assert deferred, "no decision was deferred"
     first = online[deferred[0]]
@@ -55,9 +46,4 @@ def test_the_online_decisions_defer_a_visit_and_settle_it_right(
 
 
 def test_the_replay_makes_the_online_decisions_byte_for_byte(deferring_run: Path) -> None:
-    online = _online(deferring_run)
-    visits = replay(FileSource(deferring_run)).visits
-    assert len(visits) == len(online)
-    for logged, ours in zip(online, visits, strict=True):
-        again = decision_message(logged.time_ns, logged.visit_id, ours.decision, logged.threshold)
-        assert again.SerializeToString() == logged.SerializeToString()
+    assert_replay_makes_the_online_decisions(deferring_run)

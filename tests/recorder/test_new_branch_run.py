@@ -13,35 +13,26 @@ from pathlib import Path
 
 import pytest
 
-from pipemap.recorder import RecordSettings, Topic, read_log, record_run, schemas
-from pipemap.recorder.messages import decision_message
-from pipemap.replay import FileSource, replay
-from pipemap.sim.network import build_network
 from tests.cli.common import run
+from tests.recorder.drifting import (
+    assert_replay_makes_the_online_decisions,
+    online_decisions,
+    record_drifting,
+)
 
 #: The run (docs/lookalike.md): with one map it merges the T's first visit.
-NETWORK, SEED, DRIFT, RESOLUTION = "grid:3x4", 1, 10.0, 96
+NETWORK, SEED = "grid:3x4", 1
 
 
 @pytest.fixture(scope="module")
 def twin_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("newbranch") / "run.mcap"
-    settings = RecordSettings(
-        NETWORK, seed=SEED, resolution_px=RESOLUTION, alike=1.0, odometry_drift=DRIFT
-    )
-    record_run(path, settings, build_network(NETWORK, seed=SEED), "test", inline=True)
-    return path
-
-
-def _online(path: Path) -> list[schemas.Decision]:
-    contents = read_log(path, keep=lambda topic: topic == Topic.DECISION)
-    return [schemas.Decision.FromString(m.data) for m in contents.messages]
+    return record_drifting(tmp_path_factory.mktemp("newbranch") / "run.mcap", NETWORK, SEED)
 
 
 def test_a_visit_kept_open_as_known_or_new_settles_as_new_and_the_map_is_right(
     twin_run: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
-    online = _online(twin_run)
+    online = online_decisions(twin_run)
     # A decision taken as a known junction, with a new junction (an id no visit
     # before had) among the others it may be, settled later as that new junction.
     seen: set[int] = set()
@@ -68,9 +59,4 @@ def test_a_visit_kept_open_as_known_or_new_settles_as_new_and_the_map_is_right(
 
 
 def test_the_replay_makes_the_online_decisions_byte_for_byte(twin_run: Path) -> None:
-    online = _online(twin_run)
-    visits = replay(FileSource(twin_run)).visits
-    assert len(visits) == len(online)
-    for logged, ours in zip(online, visits, strict=True):
-        again = decision_message(logged.time_ns, logged.visit_id, ours.decision, logged.threshold)
-        assert again.SerializeToString() == logged.SerializeToString()
+    assert_replay_makes_the_online_decisions(twin_run)
