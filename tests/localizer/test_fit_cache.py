@@ -7,10 +7,17 @@ id, another map's ports, another visit)."""
 from __future__ import annotations
 
 import math
+import sys
 
 import pytest
 
 from pipemap.localizer import Decision, Localizer, LocalizerConfig, branching, fitcache
+from pipemap.localizer.ports import (
+    clockwise_ports,
+    match_ports,
+    port_assignments,
+    port_rotations,
+)
 from pipemap.localizer.topomap import TopoMap
 from pipemap.localizer.twoview import SweepFeatures, stored_features
 from tests.conftest import PaperSet
@@ -183,3 +190,89 @@ def test_the_far_fit_is_not_made_where_its_answer_cannot_count(
     # Where B is 0.8 m off A the answer counts, and C is fitted (test_new_branch).
     _to_the_twin(DRIFTING, paper_sets)
     assert far_fits == [1]
+
+
+#: A T fitting: its pipes line up with the exits at one turn only.
+T = (0.0, math.pi / 2.0, math.pi)
+
+
+def _into_the_twin_t_by_a_pipe_taken(
+    paper_sets: dict[str, PaperSet], fitted: list[tuple[str, int]], x_m: float = 1.7
+) -> tuple[Localizer, Decision]:
+    """A, C: identical T fittings 2 m apart, X and Z crosses. The robot drives A -> X
+    -> C -> Z (leaving A by its left pipe, C straight on), then by a pipe not driven
+    yet into C, ``x_m`` from A along the line to C by dead reckoning (within the
+    drift of both), through C's left pipe: on A that pipe leads to X, at the one
+    turn a T allows. ``fitted`` gets (caller, node) of every fit asked."""
+    same = paper_sets["1"].images
+    loc = Localizer(DRIFTING)
+    for images, exits, position, odometer, leave in (
+        (same, T, (0.0, 0.0), 16.0, math.pi / 2.0),
+        (paper_sets["4"].images, CROSS, (1.0, 0.0), 17.0, 0.0),
+        (same, T, (2.0, 0.0), 18.0, 0.0),
+        (paper_sets["10"].images, CROSS, (2.5, 0.8), 19.0, math.pi / 2.0),
+    ):
+        loc.localize(images, exits_rad=exits, odometer_m=odometer, position_m=position)
+        loc.depart(leave)
+    fitted.clear()
+    exits = tuple(e + math.pi / 2.0 for e in T)  # the robot faces A's and C's right
+    turned = _turned(same, -math.pi / 2.0)
+    return loc, loc.localize(turned, exits_rad=exits, odometer_m=30.0, position_m=(x_m, 0.0))
+
+
+def test_a_junction_no_fit_can_make_a_branch_is_not_fitted_for_the_branch(
+    paper_sets: dict[str, PaperSet], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # B is C: A fits too but is passed over (its pipe behind leads to X), and the
+    # new map is pruned at once (B is 0.3 m from C). Whether A's look repeats then
+    # counts for nothing, and at every turn a fit could agree with, A's pipe behind
+    # is taken: the branch does not ask A's fit again.
+    fitted: list[tuple[str, int]] = []
+    real = Localizer._fit
+
+    def asked(self, node, *args):  # type: ignore[no-untyped-def]
+        fitted.append((sys._getframe(1).f_code.co_name, node))
+        return real(self, node, *args)
+
+    monkeypatch.setattr(Localizer, "_fit", asked)
+    loc, b = _into_the_twin_t_by_a_pipe_taken(paper_sets, fitted)
+    assert b.known and b.node == 2 and [i for i, _ in b.rejected] == [0]
+    assert b.hypotheses == 1 and b.deferred == ()
+    assert fitted == [("_verified", 0), ("_verified", 2)]
+    # The same decision and map where every junction is fitted.
+    monkeypatch.setattr(branching, "_never_a_branch", lambda *args: False)
+    again, b_again = _into_the_twin_t_by_a_pipe_taken(paper_sets, fitted)
+    assert ("_repeats", 0) in fitted
+    assert b_again == b and again.map.to_dict() == loc.map.to_dict()
+    monkeypatch.undo()
+    monkeypatch.setattr(Localizer, "_fit", asked)
+    # 1 m from C the new map lives, and whether the look repeats counts: A is fitted
+    # (its fit kept from the choice) and says it does, so B may be new.
+    _, b_new = _into_the_twin_t_by_a_pipe_taken(paper_sets, fitted, x_m=1.0)
+    assert b_new.node == 2 and b_new.hypotheses == 2 and b_new.deferred == (4,)
+    assert fitted == [("_verified", 0), ("_verified", 2), ("_repeats", 0)]
+
+
+@pytest.mark.parametrize(
+    "first_exits",
+    [Y, T, CROSS, (0.3, 1.9, 3.0, -1.2), (0.0, math.pi)],
+    ids=["Y", "T", "cross", "irregular", "straight"],
+)
+def test_every_assignment_a_fit_agrees_with_is_one_of_the_port_assignments(
+    first_exits: tuple[float, ...],
+) -> None:
+    ports, _ = clockwise_ports(first_exits)
+    tolerance = CONFIG.port_tolerance_rad
+    for turn in (0.0, 0.7, -2.0, 3.0):
+        for noise in (0.0, 0.15, -0.3):
+            exits = tuple(p + turn + noise * (k % 2) for k, p in enumerate(ports))
+            assignments = {a for _, a in port_assignments(ports, exits, tolerance)}
+            agreeing = set()
+            for step in range(720):
+                match = match_ports(ports, exits, -math.pi + step * math.pi / 360.0, tolerance)
+                if match.exit_ports is not None:
+                    agreeing.add(match.exit_ports)
+            assert agreeing and agreeing <= assignments
+            assert port_rotations(ports, exits, tolerance) == tuple(
+                r for r, _ in port_assignments(ports, exits, tolerance)
+            )
