@@ -32,6 +32,7 @@ that id unused and read it as their junction (:attr:`Hypothesis.aliases`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from pipemap.localizer.decision import check_order
@@ -76,6 +77,8 @@ def alike_branches(
     config = loc.config
     branches = []
     for j in alike:
+        if _never_a_branch(loc, j, exits):
+            continue  # the fit could only be passed over
         j_fit = loc._fit(j, features, matched_all[j].rotation_rad, 0, exits, turn)
         if j_fit is None or j_fit.inliers < config.verify_inliers:
             continue
@@ -109,7 +112,7 @@ def new_branch(
     is added to the matcher's pool when it is given. Where the look repeats, the
     other known junctions of the look that the odometry allows join ``branches``
     (their fits ``fits``), whatever their similarity: it cannot tell them apart."""
-    config, topomap = loc.config, loc.map
+    topomap = loc.map
     node = branches[0].node
     if exits is None or stored is None or node == loc.expected_node():
         return None
@@ -117,16 +120,16 @@ def new_branch(
     port = None if last is None else last.departure_port
     if previous is not None and port is not None and topomap.edge_at(previous, port) is not None:
         return None  # the robot came by a pipe the map has driven
-    repeats = _repeats(loc, branches, features, matched_all, exits, behind, fits)
-    if not alike and not repeats:
+    # Whether the look repeats counts only where nothing else says so and the new
+    # map would live (a branch the look adds only lowers its weight).
+    counts = not alike and _new_likelihood(loc, branches) is not None
+    repeats = _repeats(loc, branches, features, matched_all, exits, behind, fits, counts)
+    log_likelihood = _new_likelihood(loc, branches)
+    if log_likelihood is None:
         return None
-    # Not at any of the known junctions it may be: the nearest by odometry counts.
-    odometry = max(loc._odometry.log_likelihood(b.node) for b in branches)
-    if odometry >= 0.0:
-        return None
-    log_likelihood = math.log(NEW_LIKELIHOOD) + math.log1p(-math.exp(odometry))
-    best = max(b.log_likelihood for b in branches)
-    if log_likelihood - best < math.log(config.hypothesis_prune_ratio):
+    # Last, as it costs a fit and adds no branch: whether the look repeats beyond
+    # the odometry's reach, where nothing else has said so.
+    if not alike and not repeats and not _repeats_far(loc, branches, features, matched_all, exits):
         return None
     new = loc._matcher.add(prepared)
     loc._odometry.remember(new)
@@ -144,24 +147,22 @@ def _repeats(
     exits: tuple[float, ...] | None,
     behind: int | None,
     fits: dict[int, Fit],
+    counts: bool = True,
 ) -> bool:
     """Whether the keypoints of another known junction than the branches' fit the
     sweep, its ports fitting the exits: of the :data:`REPEAT_CANDIDATES` best ranked
     that the odometry allows, each that fits becomes a branch (unless the pipe end
-    the robot came in by is taken there); if none does, the best ranked beyond the
-    odometry's reach is tried, for the look alone."""
-    skip = {b.node for b in branches} | {loc._excluded()}
-    topomap, config = loc.map, loc.config
-    near = loc._odometry.near
-
-    def other(i: int) -> bool:
-        return (
-            i not in skip and not topomap.unused(i) and loc._allowed_rotations(i, exits, 0.0) != ()
-        )
-
+    the robot came in by is taken there). Where none fits, :func:`_repeats_far`
+    tries the best ranked beyond the odometry's reach, for the look alone. Unless
+    the answer ``counts``, a junction that no fit can make a branch is not fitted
+    (and says nothing)."""
+    config, near = loc.config, loc._odometry.near
+    other = _other(loc, branches, exits)
     repeats = False
     ranked, _ = check_order(matched_all, lambda i: other(i) and near(i), REPEAT_CANDIDATES)
     for i in ranked:
+        if not counts and _never_a_branch(loc, i, exits):
+            continue
         fit = loc._fit(i, features, matched_all[i].rotation_rad, config.verify_inliers, exits, 0.0)
         if fit is None or fit.inliers < config.verify_inliers:
             continue
@@ -175,12 +176,67 @@ def _repeats(
         i_arrival = None if behind is None or i_exit is None else i_exit[behind]
         branches.append(Branch(i, i_arrival, i_exit, loc._evidence(i, ports)))
         fits[i] = (matched_all[i], fit, ports)
-    if repeats:
-        return True
+    return repeats
+
+
+def _repeats_far(
+    loc: Localizer,
+    branches: list[Branch],
+    features: SweepFeatures,
+    matched_all: list[SetMatch],
+    exits: tuple[float, ...] | None,
+) -> bool:
+    """Whether the keypoints of the best ranked known junction beyond the odometry's
+    reach fit the sweep (none of the branches): the look repeats, though that
+    junction cannot be the visit's."""
+    near, needed = loc._odometry.near, loc.config.verify_inliers
+    other = _other(loc, branches, exits)
     ranked, _ = check_order(matched_all, lambda i: other(i) and not near(i), 1)
-    needed = config.verify_inliers
     for i in ranked:
         fit = loc._fit(i, features, matched_all[i].rotation_rad, needed, exits, 0.0)
         if fit is not None and fit.inliers >= needed:
             return True
     return False
+
+
+def _other(
+    loc: Localizer, branches: list[Branch], exits: tuple[float, ...] | None
+) -> Callable[[int], bool]:
+    """Whether a known junction may show that the look repeats: none of the
+    branches, not the junction the robot just left, used by the map, and its pipes
+    able to line up with the exits."""
+    skip = {b.node for b in branches} | {loc._excluded()}
+    topomap = loc.map
+
+    def other(i: int) -> bool:
+        return (
+            i not in skip and not topomap.unused(i) and loc._allowed_rotations(i, exits, 0.0) != ()
+        )
+
+    return other
+
+
+def _new_likelihood(loc: Localizer, branches: list[Branch]) -> float | None:
+    """The log-likelihood of the new branch beside ``branches`` (see the module);
+    ``None`` where it has none (no dead reckoning, or at a known junction's place)
+    or would be pruned at once. More branches never raise it."""
+    # Not at any of the known junctions it may be: the nearest by odometry counts.
+    odometry = max(loc._odometry.log_likelihood(b.node) for b in branches)
+    if odometry >= 0.0:
+        return None
+    log_likelihood = math.log(NEW_LIKELIHOOD) + math.log1p(-math.exp(odometry))
+    best = max(b.log_likelihood for b in branches)
+    if log_likelihood - best < math.log(loc.config.hypothesis_prune_ratio):
+        return None
+    return log_likelihood
+
+
+def _never_a_branch(loc: Localizer, node: int, exits: tuple[float, ...] | None) -> bool:
+    """Whether no two-view fit can make known junction ``node`` a branch: with the
+    port check on, a fit whose ports do not agree is passed over, and at every
+    assignment of the exits to the ports that one could agree with, the pipe end
+    the robot came in by leads elsewhere (the arrival rule)."""
+    config = loc.config
+    return config.port_check and loc._hypotheses.arrival_conflict_at_every_turn(
+        node, exits, config.port_tolerance_rad
+    )

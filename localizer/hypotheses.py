@@ -44,7 +44,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from pipemap.localizer.ports import PortMatch, nearest_exit
+from pipemap.localizer.ports import PortMatch, nearest_exit, port_assignments
 from pipemap.localizer.topomap import TopoMap
 
 __all__ = [
@@ -200,13 +200,9 @@ class Hypotheses:
         rule). ``None`` when it can be, or the pipe was driven (the map's own junction
         is weighed, not ruled out)."""
         topomap = self.leader.map
-        previous, last = topomap.previous, topomap.last_visit
-        if self.limit < 2 or len(self.live) > 1 or previous is None or last is None:
+        if not self._by_a_new_pipe():
             return None
         if ports is None or ports.exit_ports is None or exits is None:
-            return None
-        port = last.departure_port
-        if port is not None and topomap.edge_at(previous, port) is not None:
             return None
         behind = nearest_exit(exits, math.pi, ARRIVAL_TOLERANCE_RAD)
         end = None if behind is None else ports.exit_ports[behind]
@@ -218,6 +214,35 @@ class Hypotheses:
             f"port {end} of node {node} already leads to port {far_port} of node {far}, "
             "not to the pipe the robot came by"
         )
+
+    def arrival_conflict_at_every_turn(
+        self, node: int, exits: tuple[float, ...] | None, tolerance_rad: float
+    ) -> bool:
+        """Whether :meth:`arrival_conflict` rejects known junction ``node`` at every
+        assignment of the exits to its ports that a fit could agree with
+        (:func:`localizer.ports.port_assignments`, within ``tolerance_rad``): then no
+        fit makes it the visit's junction, and a fit that would only say so need not
+        be made. ``False`` where the rule does not apply or nothing is compared."""
+        ports = self.leader.map.ports(node)
+        if ports is None or exits is None or not self._by_a_new_pipe():
+            return False
+        behind = nearest_exit(exits, math.pi, ARRIVAL_TOLERANCE_RAD)
+        if behind is None:
+            return False
+        return all(
+            self.leader.map.edge_at(node, exit_ports[behind]) is not None
+            for _, exit_ports in port_assignments(ports, exits, tolerance_rad)
+        )
+
+    def _by_a_new_pipe(self) -> bool:
+        """Whether :meth:`arrival_conflict` applies: one map alive, competing maps on,
+        and the robot came by a pipe the map has not driven."""
+        topomap = self.leader.map
+        previous, last = topomap.previous, topomap.last_visit
+        if self.limit < 2 or len(self.live) > 1 or previous is None or last is None:
+            return False
+        port = last.departure_port
+        return port is None or topomap.edge_at(previous, port) is None
 
     def depart(self, exit_index: int | None) -> int | None:
         """Every hypothesis leaves by the exit ``exit_index`` of the last visit (each

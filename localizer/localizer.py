@@ -43,6 +43,7 @@ from pipemap.localizer.decision import (
     threshold_candidates,
 )
 from pipemap.localizer.fastmatch import FastMatcher, PreparedSet
+from pipemap.localizer.fitcache import VisitFits, fit_once
 from pipemap.localizer.hypotheses import Branch, Hypotheses, port_log_likelihood
 from pipemap.localizer.illumination import normalised
 from pipemap.localizer.imageset import ImageSet
@@ -53,7 +54,6 @@ from pipemap.localizer.ports import nearest_exit as _nearest_exit
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
 from pipemap.localizer.twoview import StoredFeatures, SweepFeatures, TwoViewFit, stored_features
-from pipemap.localizer.verify import candidate_fit
 
 __all__ = [
     "DEFAULT_THRESHOLD",
@@ -90,6 +90,7 @@ class Localizer:
         self._matcher = FastMatcher(self.config.fast)
         #: Keypoints by node (with ``config.two_view``), computed once per sweep, kept compact.
         self._features: list[StoredFeatures] = []
+        self._fits = VisitFits()
         self._hypotheses = Hypotheses(
             TopoMap(), self.config.hypotheses, self.config.hypothesis_prune_ratio
         )
@@ -389,29 +390,9 @@ class Localizer:
         few dozen pixels), the threshold decides, as in the paper."""
         return len(features) >= self.config.verify_min_keypoints
 
-    def _fit(
-        self,
-        node: int,
-        features: SweepFeatures,
-        guess_rad: float,
-        needed: int,
-        exits: tuple[float, ...] | None,
-        turn: float,
-    ) -> TwoViewFit | None:
-        """The two-view fit of the sweep with known junction ``node`` (unturned), with at
-        least ``needed`` inliers, at the NCC's rotation or another the ports allow
-        (:func:`localizer.verify.candidate_fit`)."""
-        return candidate_fit(
-            features,
-            self._features[node].features(),
-            guess_rad,
-            needed,
-            self.config.two_view_config,
-            self._allowed_rotations(node, exits, turn),
-            lambda fit: self._agrees(node, exits, fit.turned(turn).rotation_rad),
-            bool(self.config.lamp),
-            self.config.port_tolerance_rad,
-        )
+    #: The two-view fit of the sweep with a known junction, once a visit for the same
+    #: question (:func:`localizer.fitcache.fit_once`).
+    _fit = fit_once
 
     def _allowed_rotations(
         self, node: int, exits: tuple[float, ...] | None, turn: float

@@ -26,6 +26,7 @@ __all__ = [
     "clockwise_ports",
     "match_ports",
     "nearest_exit",
+    "port_assignments",
     "port_rotations",
 ]
 
@@ -131,6 +132,18 @@ def port_rotations(
     within twice the tolerance of one another, the middle of what they ask. None
     when the counts differ; several when the junction looks the same turned (a
     cross: four), which only the images can tell apart."""
+    return tuple(r for r, _ in port_assignments(ports_rad, exits_rad, tolerance_rad))
+
+
+def port_assignments(
+    ports_rad: Sequence[float],
+    exits_rad: Sequence[float],
+    tolerance_rad: float = PORT_TOLERANCE_RAD,
+) -> tuple[tuple[float, tuple[int, ...]], ...]:
+    """The assignments of :func:`port_rotations`, each with its rotation and the port
+    of each exit (in the exits' order). Every assignment :func:`match_ports` finds
+    agreeing, at any rotation, is one of them: its exits ask for rotations within
+    the tolerance of that one."""
     n = len(ports_rad)
     if len(exits_rad) != n or n == 0:
         return ()
@@ -140,7 +153,11 @@ def port_rotations(
         asked = [_wrap(exits_rad[order[(k + shift) % n]] - ports_rad[k]) for k in range(n)]
         spread = [_wrap(r - asked[0]) for r in asked]
         if max(spread) - min(spread) <= 2.0 * tolerance_rad:
-            found.append(_wrap(asked[0] + (max(spread) + min(spread)) / 2.0))
+            port_of = [0] * n
+            for k in range(n):
+                port_of[order[(k + shift) % n]] = k
+            rotation = _wrap(asked[0] + (max(spread) + min(spread)) / 2.0)
+            found.append((rotation, tuple(port_of)))
     return tuple(found)
 
 
