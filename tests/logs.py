@@ -10,10 +10,13 @@ from pathlib import Path
 
 import numpy as np
 
-from pipemap.recorder import LogWriter, Topic, schemas
+from pipemap.recorder import LogWriter, Topic, read_log, schemas
 from pipemap.recorder.messages import image_message, pose_message
 
-#: Settings of the small recorded run the end-to-end tests share.
+#: Settings of the small recorded run the end-to-end tests share. Its counts (13
+#: sweeps of 6 images, 13 visits) are pinned in tests/recorder/test_record_command.py
+#: alone; the other tests take them from the log (:func:`sweeps_started`), so that a
+#: change of the run changes one file.
 SMALL_RUN = ["--network", "paper", "--resolution", "64", "--seed", "3"]
 
 
@@ -24,6 +27,14 @@ def record(output: Path, *extra: str) -> subprocess.CompletedProcess[str]:
         capture_output=True,
         text=True,
         timeout=600,
+    )
+
+
+def sweeps_started(log: Path) -> int:
+    """How many sweeps the log's camera started (each visit's, and each probe's)."""
+    return sum(
+        schemas.SweepCommand.FromString(m.data).phase == schemas.SweepCommand.START
+        for m in read_log(log, keep=lambda topic: topic == Topic.SWEEP).messages
     )
 
 

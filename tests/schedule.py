@@ -29,17 +29,19 @@ from xdist.scheduler import LoadScopeScheduling
 #: with other work (about three times CI's times; only their order counts here). The
 #: docs pages split in blocks (tests/test_docs_run.py) were timed in a serial run of
 #: those blocks alone, the machine about as busy. Units made cheaper since are scaled by
-#: their CPU seconds (user + system) after against before, each measured alone.
+#: their CPU seconds (user + system) after against before, each measured alone; units
+#: that start Ray by their wall time (Ray's daemons are not the test's children, so
+#: its CPU count misses them).
 SECONDS: dict[str, float] = {
     "tests/recorder/test_record_command.py": 508.0,
     "tests/sim/test_controller.py": 431.0,
-    "tests/batch/test_batch_ray.py": 323.0,
     "tests/test_docs_run.py::TestPage_docs_simulator_2": 315.0,
     "tests/replay/test_view.py": 269.0,
     "tests/replay/test_replay.py": 195.0,
-    "tests/test_faults.py": 230.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_3": 227.0,
     "tests/test_experiment.py": 190.0,
+    "tests/batch/test_batch_ray.py": 190.0,
+    "tests/test_faults.py": 190.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_2": 178.0,
     "tests/recorder/test_explore_runs.py": 167.0,
     "tests/test_docs_run.py::TestPage_docs_performance": 156.0,

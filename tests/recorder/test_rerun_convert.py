@@ -6,7 +6,7 @@ import re
 from pathlib import Path
 
 from pipemap.recorder import Topic, read_log
-from tests.logs import rerun_cli
+from tests.logs import rerun_cli, sweeps_started
 
 
 def test_rerun_mcap_convert_decodes_the_camera_images(recorded_run: Path, tmp_path: Path) -> None:
@@ -28,4 +28,4 @@ def test_rerun_mcap_convert_decodes_the_camera_images(recorded_run: Path, tmp_pa
     counts = read_log(recorded_run).counts
     # Every camera image arrives as an image, every true pose as a transform.
     assert rows == {"images": counts[Topic.IMAGE], "poses": counts[Topic.TRUE_POSE]}
-    assert rows["images"] == 78
+    assert rows["images"] == 6 * sweeps_started(recorded_run) > 0

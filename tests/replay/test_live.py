@@ -33,7 +33,7 @@ from pipemap.replay import FileSource, replay
 from pipemap.replay.live import LiveView, LiveViewProcess
 from pipemap.replay.view import describe_decision
 from pipemap.replay.web import stop
-from tests.logs import SMALL_RUN
+from tests.logs import SMALL_RUN, sweeps_started
 from tests.replay.test_view import column, free_port, read_chunks, rows, run
 
 #: What has to arrive while the run goes: an image, the map, a scalar series.
@@ -178,9 +178,11 @@ def test_images_map_and_scalars_arrive_while_the_run_goes(
     visits = len(replay(FileSource(log)).visits)
     assert 0 < grown < visits  # the map had some of the run's decisions, not all yet
     last = done.stdout.splitlines()[-1]
+    sweeps, replayed = sweeps_started(log), replay(FileSource(log))
+    assert sweeps == visits  # a run without probe sweeps: one sweep a visit
     assert last == (
-        f"streamed {log}: 13 sweeps, 78 images, 13 visits, "
-        f"{replay(FileSource(log)).topomap.node_count} junctions, to {server.url}"
+        f"streamed {log}: {sweeps} sweeps, {6 * sweeps} images, {visits} visits, "
+        f"{replayed.topomap.node_count} junctions, to {server.url}"
     )
 
 

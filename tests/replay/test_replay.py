@@ -21,6 +21,7 @@ from pipemap.recorder.metadata import lamp_strength
 from pipemap.replay import FileSource, LoggedSweep, replay
 from pipemap.replay import replayer as replayer_module
 from pipemap.replay.logged_probes import LoggedProbes
+from tests.logs import sweeps_started
 
 RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
 
@@ -51,7 +52,7 @@ def test_replay_twice_gives_identical_bytes(recorded_run: Path, tmp_path: Path) 
         assert done.returncode == 0, done.stderr
     assert first.read_bytes() == second.read_bytes()
     doc = json.loads(first.read_text())
-    assert len(doc["visits"]) == 13 and doc["visits"][0]["set"] == "0001"
+    assert len(doc["visits"]) == sweeps_started(recorded_run) and doc["visits"][0]["set"] == "0001"
 
 
 def test_a_log_without_truth_and_online_replays_to_the_same_bytes(
