@@ -70,9 +70,9 @@ def test_refinement_runs_in_bounded_groups_with_the_same_numbers(
     groups: list[int] = []
     real = spectra._chunk_rows
 
-    def spy(query: Any, ramped: np.ndarray, blocks: list[Any]) -> np.ndarray:
+    def spy(query: Any, ramped: np.ndarray, blocks: list[Any], *work: Any) -> np.ndarray:
         groups.append(len(blocks))
-        return real(query, ramped, blocks)
+        return real(query, ramped, blocks, *work)
 
     monkeypatch.setattr(spectra, "_chunk_rows", spy)
     monkeypatch.setattr(spectra, "PEAK_CHUNK_BYTES", 1)  # one block at a time
@@ -83,6 +83,30 @@ def test_refinement_runs_in_bounded_groups_with_the_same_numbers(
     monkeypatch.setattr(spectra, "PEAK_CHUNK_BYTES", 1 << 40)
     assert pairwise_matches(sets, every_offset=True) == whole
     assert max(groups) > 1
+
+
+def test_every_group_of_a_call_is_transformed_in_the_same_work_arrays(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    sets = [pairwise._searched(prepare(s, FastConfig())) for s in _sets(3)]
+    fine = [s.fine for s in sets]
+    blocks = [(known, k) for known in fine[1:] for k in range(sets[0].count)]
+    whole = spectra._fine_peaks(fine[0], blocks)
+    arrays: list[int] = []  # the address of the work arrays each group is given
+    real = spectra._chunk_rows
+
+    def spy(query: Any, ramped: np.ndarray, chunk: list[Any], work: Any) -> np.ndarray:
+        arrays.append(work.spectra.__array_interface__["data"][0])
+        arrays.append(work.ncc.__array_interface__["data"][0])
+        return real(query, ramped, chunk, work)
+
+    monkeypatch.setattr(spectra, "_chunk_rows", spy)
+    monkeypatch.setattr(spectra, "PEAK_CHUNK_BYTES", 5 * fine[0].spectrum.nbytes)
+    grouped = spectra._fine_peaks(fine[0], blocks)
+    assert len(arrays) == 2 * 3  # 12 blocks in groups of 5, 5 and 2
+    assert len(set(arrays[0::2])) == 1 and len(set(arrays[1::2])) == 1
+    # The last, shorter group reads none of the group before it.
+    assert all(np.array_equal(g, w) for g, w in zip(grouped, whole, strict=True))
 
 
 @pytest.mark.parametrize("zooms", [(), (1.15,)])
