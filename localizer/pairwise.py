@@ -28,7 +28,7 @@ from pipemap.localizer.prepared import (
 from pipemap.localizer.similarity import SetMatch, best_offset
 from pipemap.localizer.spectra import FineSpectra, _fine_peaks, _fine_spectra
 
-__all__ = ["SCREEN_MARGIN", "for_pairs", "pairwise_matches"]
+__all__ = ["SCREEN_MARGIN", "for_pairs", "pairwise_matches", "prepare_for_pairs"]
 
 #: With ``screen``, :func:`pairwise_matches` refines each offset whose screened mean
 #: NCC is within this of the pair's best offset's. On the paper's 25 sets (300 pairs),
@@ -74,9 +74,34 @@ def _searched(prepared: PreparedSet) -> PreparedSet:
     return replace(prepared, fine=fine)
 
 
-def _prepared_for(item: ImageSet | PreparedSet, config: FastConfig) -> PreparedSet:
+def prepare_for_pairs(
+    image_set: ImageSet, config: FastConfig, every_offset: bool = False
+) -> PreparedSet:
+    """``image_set`` prepared as :func:`pairwise_matches` with the same ``config`` and
+    ``every_offset`` needs it: without refinement spectra (:func:`for_pairs`), and
+    without the screening arrays where every offset of every pair will be refined (at
+    the defaults), which never screens."""
+    return for_pairs(
+        prepare(
+            image_set,
+            config,
+            refinement=False,
+            screening=not _refines_every_offset(config, image_set.count, every_offset),
+        )
+    )
+
+
+def _refines_every_offset(config: FastConfig, count: int, every_offset: bool) -> bool:
+    """Whether :func:`pairwise_matches` refines every offset of every pair of sets of
+    ``count`` images (then it needs no :class:`FastMatcher`)."""
+    return every_offset or config.refine_offsets >= count
+
+
+def _prepared_for(
+    item: ImageSet | PreparedSet, config: FastConfig, every_offset: bool
+) -> PreparedSet:
     if isinstance(item, ImageSet):
-        return for_pairs(prepare(item, config, refinement=False))
+        return prepare_for_pairs(item, config, every_offset)
     # Its shape key: the images' shape, field of view and kept fraction, then settings.
     if item.shape_key[5:] != config_key(config):
         raise LocalizerError("a set prepared with other matcher settings than the pairs'")
@@ -132,7 +157,7 @@ def pairwise_matches(
         )
         for k in (i, *later):
             if k not in prepared:
-                prepared[k] = _prepared_for(sets[k], base)
+                prepared[k] = _prepared_for(sets[k], base, every_offset)
         for j in later:
             if j not in searched:
                 searched[j] = _searched(prepared[j])

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pipemap.errors import LocalizerError
 from pipemap.localizer import (
     FastConfig,
     FastMatcher,
@@ -16,6 +17,7 @@ from pipemap.localizer import (
     pairwise_matches,
     spectra,
 )
+from pipemap.localizer import prepared as prepared_module
 from pipemap.localizer.fastmatch import prepare
 from pipemap.localizer.pairwise import for_pairs
 from tests.localizer.synthetic import panorama, sweep
@@ -147,3 +149,29 @@ def test_sets_prepared_for_pairs_build_their_refinement_spectra_once(
     built_later = _counting(monkeypatch, pairwise, "_fine_spectra")
     assert pairwise_matches(images) == whole
     assert len(built) == 0 and len(built_later) == 4
+
+
+def test_sets_whose_every_offset_is_refined_are_prepared_without_screening_arrays(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    images = _sets(4)
+    screened = _counting(monkeypatch, prepared_module, "_screening")
+    at_defaults = pairwise_matches(images)
+    assert screened == []  # every offset of every pair: nothing is screened
+    cheap = FastConfig(refine_offsets=2)
+    with_matcher = pairwise_matches(images, cheap)
+    assert len(screened) == len(images)  # a FastMatcher screens: the sets need them
+    # The same numbers as sets prepared with their screening arrays.
+    full = [for_pairs(prepare(s, FastConfig(), refinement=False)) for s in images]
+    assert full[0].screenable
+    assert pairwise_matches(full) == at_defaults
+    assert pairwise_matches(images, cheap) == with_matcher
+    bare = pairwise.prepare_for_pairs(images[0], FastConfig())
+    assert not bare.screenable and bare.template_rows.size == 0
+    assert pairwise.prepare_for_pairs(images[0], cheap).screenable
+    assert not pairwise.prepare_for_pairs(images[0], cheap, every_offset=True).screenable
+    # Such a set cannot go where it would be screened.
+    with pytest.raises(LocalizerError, match="screening arrays"):
+        FastMatcher(FastConfig()).add(bare)
+    with pytest.raises(LocalizerError, match="screening arrays"):
+        pairwise_matches([bare, bare], cheap)
