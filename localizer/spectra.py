@@ -255,11 +255,14 @@ def _chunk_rows(
         assert known.inv_window_norm is not None, "a query's spectra cannot be searched"
         ncc[b * n : b * n + n - k] *= known.inv_window_norm[k:]
         ncc[b * n + n - k : (b + 1) * n] *= known.inv_window_norm[:k]
-    ncc *= np.tile(query.inv_norm, len(blocks)).astype(np.float32)[:, None, None]
+    # Each pair's NCC is this times the query image's 1 / norm, a scale >= 0: rounding
+    # keeps the order, so the scaled maximum of a row is its maximum scaled, and only
+    # the row kept needs scaling (one pass over the array less, the same bits).
+    scale = np.tile(query.inv_norm, len(blocks)).astype(np.float32)[:, None]
     # The first row (y) holding the image's maximum: where a flat argmax of the
     # (y, x) array would find it.
-    best_row = np.argmax(ncc.max(axis=1), axis=1)
-    rows_out: np.ndarray = ncc[np.arange(len(ncc)), :, best_row]
+    best_row = np.argmax(ncc.max(axis=1) * scale, axis=1)
+    rows_out: np.ndarray = ncc[np.arange(len(ncc)), :, best_row] * scale
     return rows_out
 
 

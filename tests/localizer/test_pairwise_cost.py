@@ -16,6 +16,7 @@ from pipemap.localizer import (
     pairwise,
     pairwise_matches,
     spectra,
+    transforms,
 )
 from pipemap.localizer import prepared as prepared_module
 from pipemap.localizer.fastmatch import prepare
@@ -175,3 +176,27 @@ def test_sets_whose_every_offset_is_refined_are_prepared_without_screening_array
         FastMatcher(FastConfig()).add(bare)
     with pytest.raises(LocalizerError, match="screening arrays"):
         pairwise_matches([bare, bare], cheap)
+
+
+def test_each_pairs_peak_is_read_off_its_whole_scaled_ncc_bit_for_bit() -> None:
+    """The refinement scales only the row it keeps; the peaks are those of the whole
+    NCC array scaled, pair by pair, to the last bit (a flat image's too)."""
+    rng = np.random.default_rng(5)
+    images = rng.uniform(0, 255, (2, 6, 24, 40))
+    images[:, 2] = 7.0  # flat: its 1 / norm and window norms are 0
+    query, known = (spectra._fine_spectra(i, 160) for i in images)
+    blocks = [(known, k) for k in range(6)]
+    values, columns = spectra._fine_peaks(query, blocks)
+    ramped = np.conj(query.spectrum) * spectra._ramp(query.length, query.rows, query.width)
+    assert known.inv_window_norm is not None and query.inv_norm[2] == 0.0
+    for b, (_, k) in enumerate(blocks):
+        for j in range(6):
+            m = (j + k) % 6
+            along_y = transforms.ifft(ramped[j] * known.spectrum[m], axis=1)[:, : query.rows]
+            ncc = transforms.irfft(along_y, n=query.length[1], axis=0)[: query.width]
+            ncc = (ncc.astype(np.float32) * known.inv_window_norm[m]).T  # (y, x)
+            ncc *= np.float32(query.inv_norm[j])
+            y, x = np.unravel_index(int(np.argmax(ncc)), ncc.shape)
+            value, column = spectra._peaks_along_columns(ncc[y])
+            assert values[b, j] == np.clip(value, -1.0, 1.0)
+            assert columns[b, j] == column - query.width // 2
