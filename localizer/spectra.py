@@ -60,15 +60,13 @@ class FineSpectra:
     width: int
     full_width_px: int
     length: tuple[int, int]
-    #: rfft2 of each zero-mean decimated image, transposed: (N, Fx, Ly) complex64,
-    #: so that the inverse transform along y runs along the contiguous axis (a third
-    #: quicker than along the middle one, with the same bits).
+    #: rfft2 of each zero-mean decimated image, (N, Ly, Fx) complex64.
     spectrum: np.ndarray
     #: 1 / sqrt(sum T^2) of each image, (N,).
     inv_norm: np.ndarray
-    #: 1 / sqrt(local variance sum) over the "same" shift range, transposed as the
-    #: spectrum is: (N, W, R) float32; 0 where the window is flat. Only the searched
-    #: set's are used: ``None`` for a query's (see :func:`_fine_spectra`).
+    #: 1 / sqrt(local variance sum) over the "same" shift range, (N, R, W) float32;
+    #: 0 where the window is flat. Only the searched set's are used: ``None`` for a
+    #: query's (see :func:`_fine_spectra`).
     inv_window_norm: np.ndarray | None
 
 
@@ -134,12 +132,10 @@ def _same_range_norms(zero_mean: np.ndarray) -> np.ndarray:
 
 @functools.lru_cache(maxsize=8)
 def _ramp(length: tuple[int, int], rows: int, width: int) -> np.ndarray:
-    """Phase ramp that moves correlation shift (-R/2, -W/2) to output index (0, 0),
-    laid out as :attr:`FineSpectra.spectrum` is: (Fx, Ly)."""
+    """Phase ramp that moves correlation shift (-R/2, -W/2) to output index (0, 0)."""
     fy = np.fft.fftfreq(length[0])[:, None]
     fx = np.fft.rfftfreq(length[1])[None, :]
     ramp = np.exp(-2j * np.pi * (fy * (rows // 2) + fx * (width // 2))).astype(np.complex64)
-    ramp = np.ascontiguousarray(ramp.T)
     ramp.setflags(write=False)
     return ramp
 
@@ -152,7 +148,7 @@ def _fine_spectra(fine: np.ndarray, full_width_px: int, searched: bool = True) -
     length = (_fft_length(rows), _fft_length(width))
     # Two stages so that the zero rows of the padding are never transformed along x.
     along_x = transforms.rfft(zero_mean.astype(np.float32), n=length[1], axis=2)
-    spectrum = transforms.fft(along_x.transpose(0, 2, 1), n=length[0], axis=2)  # (N, Fx, Ly)
+    spectrum = transforms.fft(along_x, n=length[0], axis=1)
     return FineSpectra(
         rows=rows,
         width=width,
@@ -161,11 +157,7 @@ def _fine_spectra(fine: np.ndarray, full_width_px: int, searched: bool = True) -
         spectrum=spectrum,
         inv_norm=_inverse(np.sqrt(np.sum(zero_mean**2, axis=(1, 2)))),
         inv_window_norm=(
-            np.ascontiguousarray(
-                _inverse(_same_range_norms(zero_mean)).astype(np.float32).transpose(0, 2, 1)
-            )
-            if searched
-            else None
+            _inverse(_same_range_norms(zero_mean)).astype(np.float32) if searched else None
         ),
     )
 
@@ -215,9 +207,9 @@ class _Work:
     system time in 1.8 s for the refinement of 55 pairs).
     """
 
-    #: The pair spectra, transformed along y in place: (blocks * N, Fx, Ly) complex64.
+    #: The pair spectra, transformed along y in place: (blocks * N, Ly, Fx) complex64.
     spectra: np.ndarray
-    #: The correlation rows kept, transformed along x: (blocks * N, Lx, R) float32.
+    #: The correlation rows kept, transformed along x: (blocks * N, R, Lx) float32.
     ncc: np.ndarray
 
     @classmethod
@@ -225,7 +217,7 @@ class _Work:
         n = len(ramped)
         return cls(
             spectra=np.empty((blocks * n, *ramped.shape[1:]), dtype=ramped.dtype),
-            ncc=np.empty((blocks * n, query.length[1], query.rows), dtype=np.float32),
+            ncc=np.empty((blocks * n, query.rows, query.length[1]), dtype=np.float32),
         )
 
 
@@ -247,10 +239,9 @@ def _chunk_rows(
         # Query image j with known image (j + k) mod N, in two slices (no gathered copy).
         np.multiply(ramped[: n - k], known.spectrum[k:], out=product[b, : n - k])
         np.multiply(ramped[n - k :], known.spectrum[:k], out=product[b, n - k :])
-    along_y = transforms.ifft(work.spectra[:used], axis=2, out=work.spectra[:used])[..., :rows]
-    # ncc[i, x, y]: image pair i's NCC at the shift (y - R/2, x - W/2).
-    ncc = transforms.irfft(along_y, n=query.length[1], axis=1, out=work.ncc[:used])
-    ncc = ncc[:, :width]
+    along_y = transforms.ifft(work.spectra[:used], axis=1, out=work.spectra[:used])[:, :rows]
+    ncc = transforms.irfft(along_y, n=query.length[1], axis=2, out=work.ncc[:used])
+    ncc = ncc[:, :, :width]
     for b, (known, k) in enumerate(blocks):
         assert known.inv_window_norm is not None, "a query's spectra cannot be searched"
         ncc[b * n : b * n + n - k] *= known.inv_window_norm[k:]
@@ -259,10 +250,10 @@ def _chunk_rows(
     # keeps the order, so the scaled maximum of a row is its maximum scaled, and only
     # the row kept needs scaling (one pass over the array less, the same bits).
     scale = np.tile(query.inv_norm, len(blocks)).astype(np.float32)[:, None]
-    # The first row (y) holding the image's maximum: where a flat argmax of the
-    # (y, x) array would find it.
-    best_row = np.argmax(ncc.max(axis=1) * scale, axis=1)
-    rows_out: np.ndarray = ncc[np.arange(len(ncc)), :, best_row] * scale
+    # The first row holding the image's maximum: where a flat argmax would find it,
+    # without copying the strided array to flatten it.
+    best_row = np.argmax(ncc.max(axis=2) * scale, axis=1)
+    rows_out: np.ndarray = ncc[np.arange(len(ncc)), best_row] * scale
     return rows_out
 
 

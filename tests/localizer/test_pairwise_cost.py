@@ -192,9 +192,9 @@ def test_each_pairs_peak_is_read_off_its_whole_scaled_ncc_bit_for_bit() -> None:
     for b, (_, k) in enumerate(blocks):
         for j in range(6):
             m = (j + k) % 6
-            along_y = transforms.ifft(ramped[j] * known.spectrum[m], axis=1)[:, : query.rows]
-            ncc = transforms.irfft(along_y, n=query.length[1], axis=0)[: query.width]
-            ncc = (ncc.astype(np.float32) * known.inv_window_norm[m]).T  # (y, x)
+            along_y = transforms.ifft(ramped[j] * known.spectrum[m], axis=0)[: query.rows]
+            ncc = transforms.irfft(along_y, n=query.length[1], axis=1)[:, : query.width]
+            ncc = ncc * known.inv_window_norm[m]  # (y, x)
             ncc *= np.float32(query.inv_norm[j])
             y, x = np.unravel_index(int(np.argmax(ncc)), ncc.shape)
             value, column = spectra._peaks_along_columns(ncc[y])
