@@ -46,7 +46,7 @@ if TYPE_CHECKING:
         dumps_document,
         map_document,
     )
-    from pipemap.localizer.pairwise import for_pairs, pairwise_matches
+    from pipemap.localizer.pairwise import for_pairs, pairwise_matches, prepare_for_pairs
     from pipemap.localizer.phases import PHASES
     from pipemap.localizer.ports import (
         PORT_TOLERANCE_RAD,
@@ -155,6 +155,7 @@ _EXPORTS = {
     "pair_peak": "pipemap.localizer.similarity",
     "paper_scaled": "pipemap.localizer.similarity",
     "pairwise_matches": "pipemap.localizer.pairwise",
+    "prepare_for_pairs": "pipemap.localizer.pairwise",
     "pinhole_rotation_rad": "pipemap.localizer.similarity",
     "prepare": "pipemap.localizer.fastmatch",
     "probe_plan": "pipemap.localizer.decision",
@@ -235,6 +236,7 @@ __all__ = [
     "plan_route",
     "pairwise_matches",
     "prepare",
+    "prepare_for_pairs",
     "probe_plan",
     "reference_match",
     "relative_rotation_rad",

@@ -101,6 +101,8 @@ class FastMatcher:
         return prepare(image_set, self.config)
 
     def _check(self, prepared: PreparedSet) -> None:
+        if not prepared.screenable:
+            raise LocalizerError("a set prepared without its screening arrays cannot be screened")
         if self._sets:
             _check_alike(self._sets[0], prepared)
 

@@ -102,33 +102,50 @@ def rfft(x: np.ndarray, n: int | None = None, axis: int = -1) -> np.ndarray:
     return np.asarray(pocket.r2c(data, (axis,), True, _FORWARD_NORM, None, 1))
 
 
-def _c2c(forward: bool, x: np.ndarray, n: int | None, axis: int) -> np.ndarray:
+def _into(result: np.ndarray, out: np.ndarray | None) -> np.ndarray:
+    """``result``, written into ``out`` if given (scipy.fft's path has no ``out``)."""
+    if out is None:
+        return result
+    out[...] = result
+    return out
+
+
+def _c2c(
+    forward: bool, x: np.ndarray, n: int | None, axis: int, out: np.ndarray | None
+) -> np.ndarray:
     pocket = _pocketfft()
     if pocket is None:
         module = _scipy_fft()
-        return np.asarray((module.fft if forward else module.ifft)(x, n=n, axis=axis))
+        result = (module.fft if forward else module.ifft)(x, n=n, axis=axis)
+        return _into(np.asarray(result), out)
     data = _floating(x)
     if n is not None:
         data = _sized(data, n, axis)
     norm = _FORWARD_NORM if forward else _INVERSE_NORM
-    return np.asarray(pocket.c2c(data, (axis,), forward, norm, None, 1))
+    return np.asarray(pocket.c2c(data, (axis,), forward, norm, out, 1))
 
 
 def fft(x: np.ndarray, n: int | None = None, axis: int = -1) -> np.ndarray:
     """``scipy.fft.fft(x, n, axis)``."""
-    return _c2c(True, x, n, axis)
+    return _c2c(True, x, n, axis, None)
 
 
-def ifft(x: np.ndarray, n: int | None = None, axis: int = -1) -> np.ndarray:
-    """``scipy.fft.ifft(x, n, axis)``."""
-    return _c2c(False, x, n, axis)
+def ifft(
+    x: np.ndarray, n: int | None = None, axis: int = -1, out: np.ndarray | None = None
+) -> np.ndarray:
+    """``scipy.fft.ifft(x, n, axis)``, written into ``out`` if given (its shape and
+    complex type; it may be ``x`` itself)."""
+    return _c2c(False, x, n, axis, out)
 
 
-def irfft(x: np.ndarray, n: int | None = None, axis: int = -1) -> np.ndarray:
-    """``scipy.fft.irfft(x, n, axis)``."""
+def irfft(
+    x: np.ndarray, n: int | None = None, axis: int = -1, out: np.ndarray | None = None
+) -> np.ndarray:
+    """``scipy.fft.irfft(x, n, axis)``, written into ``out`` if given (its shape and
+    real type)."""
     pocket = _pocketfft()
     if pocket is None:
-        return np.asarray(_scipy_fft().irfft(x, n=n, axis=axis))
+        return _into(np.asarray(_scipy_fft().irfft(x, n=n, axis=axis)), out)
     data = _floating(x)
     if data.dtype.kind != "c":
         data = data + 0.0j
@@ -138,4 +155,4 @@ def irfft(x: np.ndarray, n: int | None = None, axis: int = -1) -> np.ndarray:
             raise ValueError(f"invalid number of data points ({n}) specified")
     else:
         data = _sized(data, n // 2 + 1, axis)
-    return np.asarray(pocket.c2r(data, (axis,), n, False, _INVERSE_NORM, None, 1))
+    return np.asarray(pocket.c2r(data, (axis,), n, False, _INVERSE_NORM, out, 1))

@@ -36,11 +36,10 @@ from pipemap.localizer import (
     PreparedSet,
     SetMatch,
     dumps_document,
-    for_pairs,
     map_document,
     normalised,
     pairwise_matches,
-    prepare,
+    prepare_for_pairs,
     reference_match,
 )
 
@@ -300,7 +299,7 @@ def match_image_sets(
     image-set folders: what ``pipemap match`` prints.
 
     The fast path (:func:`pipemap.localizer.pairwise_matches` with ``config``) keeps
-    of each folder only what the matcher needs (:func:`pipemap.localizer.for_pairs`),
+    of each folder only what the matcher needs (:func:`pipemap.localizer.prepare_for_pairs`),
     made as it is read: 25 sets of 800 px images are 384 MB as images, about 1 MB
     each so prepared. ``reference`` compares the images themselves with the paper's
     recipe at full resolution (:func:`pipemap.localizer.reference_match`; seconds a
@@ -336,7 +335,7 @@ def match_image_sets(
             )
         if lit:
             image_set = normalised(image_set, illumination)
-        prepared.append(for_pairs(prepare(image_set, fast, refinement=False)))
+        prepared.append(prepare_for_pairs(image_set, fast, every_offset))
     return pairwise_matches(prepared, fast, every_offset=every_offset, screen=True)
 
 

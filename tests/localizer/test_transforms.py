@@ -63,3 +63,30 @@ def test_matching_sets_does_not_import_scipy_fft() -> None:
         [sys.executable, "-c", code], check=True, capture_output=True, text=True
     ).stdout
     assert out.strip() == "[]"
+
+
+@pytest.mark.parametrize("axis", [1, 2])
+def test_transforms_into_a_given_array_give_the_same_bits(axis: int) -> None:
+    spectrum = scipy_fft.fft(scipy_fft.rfft(_arrays()[0], axis=2), axis=1)
+    want = scipy_fft.ifft(spectrum, axis=axis)
+    into = np.full_like(want, np.nan)
+    assert transforms.ifft(spectrum, axis=axis, out=into) is into
+    assert np.array_equal(into, want)
+    in_place = spectrum.copy()  # the matcher transforms its pair spectra in place
+    assert np.array_equal(transforms.ifft(in_place, axis=axis, out=in_place), want)
+    rows = spectrum[:, :7]  # a strided view, as the matcher's kept rows are
+    want_real = scipy_fft.irfft(rows, n=20, axis=2)
+    real_out = np.full(want_real.shape, np.nan, dtype=want_real.dtype)
+    assert transforms.irfft(rows, n=20, axis=2, out=real_out) is real_out
+    assert np.array_equal(real_out, want_real)
+
+
+def test_scipy_fft_answers_into_a_given_array(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(transforms, "_pocketfft", lambda: None)
+    spectrum = scipy_fft.rfft(_arrays()[0], axis=2)
+    into = np.empty_like(spectrum)
+    assert transforms.ifft(spectrum, axis=1, out=into) is into
+    assert np.array_equal(into, scipy_fft.ifft(spectrum, axis=1))
+    real_out = np.empty((3, 10, 12), dtype=np.float32)
+    assert transforms.irfft(spectrum, n=12, out=real_out) is real_out
+    assert np.array_equal(real_out, scipy_fft.irfft(spectrum, n=12))
