@@ -13,7 +13,7 @@ from pipemap.localizer.ports import PORT_TOLERANCE_RAD
 from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.twoview import TwoViewConfig
 
-__all__ = ["DEFAULT_THRESHOLD", "PAPER", "PIPEMAP_CHECKS", "LocalizerConfig"]
+__all__ = ["DEFAULT_THRESHOLD", "PAPER", "PIPEMAP_CHECKS", "PIPEMAP_REFINEMENTS", "LocalizerConfig"]
 
 #: The localizer's default threshold: the paper's (see :mod:`.presets`).
 DEFAULT_THRESHOLD = PAPER_THRESHOLD
@@ -22,6 +22,9 @@ DEFAULT_THRESHOLD = PAPER_THRESHOLD
 #: :class:`LocalizerConfig`; the paper's rule (:meth:`LocalizerConfig.paper_rule`,
 #: :data:`PAPER`) has none of them.
 PIPEMAP_CHECKS = ("distinct_consecutive", "two_view", "verify", "port_check", "odometry_check")
+#: Switches that refine one of those checks (and do nothing without it); the paper's
+#: rule turns them off with it.
+PIPEMAP_REFINEMENTS = ("odometry_heading_bias",)
 
 
 @dataclass(frozen=True)
@@ -140,7 +143,7 @@ class LocalizerConfig:
         previous visit's included), the rotation is the NCC peak shift's, and neither
         the exits nor the dead reckoning are compared. The threshold, the similarity,
         active vision (the paper's Algorithm 3) and the illumination stay as set."""
-        return replace(self, **dict.fromkeys(PIPEMAP_CHECKS, False))
+        return replace(self, **dict.fromkeys((*PIPEMAP_CHECKS, *PIPEMAP_REFINEMENTS), False))
 
     def __post_init__(self) -> None:
         if not -1.0 <= self.threshold <= 1.0:
