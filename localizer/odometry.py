@@ -340,15 +340,22 @@ class DeadReckoning:
             prior, c.odometry_heading_residual_per_m + c.odometry_radius_m / math.sqrt(information)
         )
 
+    def fitted(self) -> bool:
+        """Whether the closed loops pin the heading's drift down: the fit's allowance
+        (:meth:`heading_drift_per_m`) is below ``odometry_heading_drift_per_m``."""
+        return self.heading_drift_per_m() < self.config.odometry_heading_drift_per_m
+
     def offset_m(self, node: int) -> float | None:
         """How far known junction ``node``'s first visit is from the current visit by
-        dead reckoning (with ``odometry_heading_bias``, both with the estimated
-        heading drift taken out); ``None`` when either position is unknown."""
+        dead reckoning (once the closed loops pin the heading's drift down,
+        :meth:`fitted`, both with the fitted drift taken out; until then as given, so
+        short runs decide as without the fit); ``None`` when either position is
+        unknown."""
         there = self.positions.get(node)
         if self.here is None or there is None:
             return None
         first = self.points.get(node)
-        if self.config.odometry_heading_bias and first is not None and self.point is not None:
+        if self.fitted() and first is not None and self.point is not None:
             return math.dist(self.bias.corrected(self.point), self.bias.corrected(first))
         return math.dist(self.here, there)
 
@@ -371,7 +378,7 @@ class DeadReckoning:
         if self.here is None or self.odometer_m is None:
             return tolerance
         rate = self.heading_drift_per_m()
-        if rate < c.odometry_heading_drift_per_m:
+        if self.fitted():
             anchor = self.anchors.get(node, self.marks.get(node))
             if anchor is not None:
                 tolerance = max(tolerance, c.odometry_radius_m + rate * self.path.since(anchor))
