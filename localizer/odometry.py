@@ -153,16 +153,17 @@ class HeadingBias:
     ``h``, the path is corrected leg by leg: each leg from one visit to the next
     (taken as straight) is turned back by ``h`` at its middle, about the start. A
     recognised revisit says that the corrected path comes back to where it was at
-    the junction's first visit (to within ``radius_m``, where in a chamber the robot
-    stops); the knots are the least-squares fit of every such closure, with the
-    bends of the line (second differences, sigma :data:`BEND_RAD`) as a prior, so
-    the line runs on straight past the last closure. The fit uses only the robot's
-    own dead reckoning and odometer at each visit and the localizer's decisions,
+    the junction's first visit (to within ``sigma_m``: the odometry check's capped
+    tolerance, where in a chamber the robot stops plus a loop's drift); the knots are
+    the least-squares fit of every such closure, with the bends of the line (second
+    differences, sigma :data:`BEND_RAD`) as a prior, so the line runs on straight
+    past the last closure. The fit uses only the robot's own dead reckoning and
+    odometer at each visit and the localizer's decisions,
     never the truth.
     """
 
-    def __init__(self, radius_m: float) -> None:
-        self.radius_m = radius_m
+    def __init__(self, sigma_m: float) -> None:
+        self.sigma_m = sigma_m
         #: Dead reckoning (x, y) and odometer at each visit that gave both, in order.
         self.points: list[tuple[float, float, float]] = []
         #: Closed loops: (point of the junction's first visit, point of the revisit).
@@ -221,8 +222,8 @@ class HeadingBias:
             ]
             residual = np.concatenate([path[now_i, c] - path[first_i, c] for c in (0, 1)])
             jacobian = np.vstack([slopes[c][now_i] - slopes[c][first_i] for c in (0, 1)])
-            residual /= self.radius_m
-            jacobian /= self.radius_m
+            residual /= self.sigma_m
+            jacobian /= self.sigma_m
             normal = jacobian.T @ jacobian + bends.T @ bends + 1e-12 * np.eye(count - 1)
             gradient = jacobian.T @ residual + bends.T @ (bends @ knots)
             knots = knots - np.linalg.solve(normal, gradient)
@@ -278,7 +279,7 @@ class DeadReckoning:
         self.path = PathMoment()
         #: The heading's drift estimated from closed loops, and the point on its path
         #: of each junction's first visit and of the current visit (``None``: not given).
-        self.bias = HeadingBias(config.odometry_radius_m)
+        self.bias = HeadingBias(config.odometry_limit_m)
         self.points: dict[int, int] = {}
         #: The path at each junction's last recognised visit (the fit closes there).
         self.anchors: dict[int, PathMark] = {}
@@ -329,7 +330,7 @@ class DeadReckoning:
     def heading_drift_per_m(self) -> float:
         """The heading drift the check allows for: ``odometry_heading_drift_per_m``
         until the closed loops pin the drift down, then what the fit leaves
-        uncertain: ``odometry_heading_residual_per_m`` plus ``odometry_radius_m`` over
+        uncertain: ``odometry_heading_residual_per_m`` plus ``odometry_limit_m`` over
         the square root of the fit's information, never more than the first."""
         c = self.config
         prior = c.odometry_heading_drift_per_m
@@ -337,7 +338,7 @@ class DeadReckoning:
         if not c.odometry_heading_bias or information <= 0.0:
             return prior
         return min(
-            prior, c.odometry_heading_residual_per_m + c.odometry_radius_m / math.sqrt(information)
+            prior, c.odometry_heading_residual_per_m + c.odometry_limit_m / math.sqrt(information)
         )
 
     def fitted(self) -> bool:
