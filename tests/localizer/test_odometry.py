@@ -231,3 +231,35 @@ def test_the_odometry_weight_follows_the_same_allowance() -> None:
 def test_a_negative_heading_drift_is_refused() -> None:
     with pytest.raises(LocalizerError, match="odometry"):
         replace(LocalizerConfig(), odometry_heading_drift_per_m=-1e-4)
+
+
+def test_the_fit_s_floor_sets_how_tight_the_allowance_gets() -> None:
+    # A floor as wide as the allowance without the fit leaves the twin inside.
+    loose = LocalizerConfig(odometry_heading_residual_per_m=5e-4)
+    assert _laps(LocalizerConfig(), 5, MEASURED_RAD_PER_M).heading_drift_per_m() < 1.5e-4
+    assert _laps(loose, 5, MEASURED_RAD_PER_M).near(1)
+    with pytest.raises(LocalizerError, match="odometry"):
+        replace(LocalizerConfig(), odometry_heading_residual_per_m=-1e-4)
+
+
+def test_until_the_loops_pin_the_drift_down_nothing_changes() -> None:
+    # Ten rounds of a 1 m square (a short-pipe network's walk), the start recognised
+    # at each: loops too small to trust the fit, so positions, tolerances and weights
+    # are those without it, to the bit.
+    square = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] * 10 + [(0.0, 0.0)]
+    drive = _dead_reckoned(square, MEASURED_RAD_PER_M)
+    checks = {on: DeadReckoning(LocalizerConfig(odometry_heading_bias=on)) for on in (False, True)}
+    for k, (position, odometer) in enumerate(drive):
+        for dr in checks.values():
+            dr.at(position, odometer)
+            if k == 0:
+                dr.remember(0)
+            elif k % 4 == 0 and k < len(drive) - 1:
+                dr.closed(0)
+    fitted, raw = checks[True], checks[False]
+    assert len(fitted.bias.closures) == 9 and not fitted.fitted()
+    assert fitted.offset_m(0) == raw.offset_m(0)
+    assert fitted.tolerance_for(0) == raw.tolerance_for(0)
+    assert fitted.log_likelihood(0) == raw.log_likelihood(0)
+    # The laps of 20 m pipes do pin it down after one lap.
+    assert _laps(LocalizerConfig(), 2, MEASURED_RAD_PER_M).fitted()
