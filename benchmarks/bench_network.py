@@ -4,7 +4,9 @@ Usage: ``python benchmarks/bench_network.py [--json] [SPEC ...]`` (default
 ``random:200 random:1000 grid:30x30 tree:300``, seed 0, or ``SPEC@SEED``). For each
 spec: the wall and CPU time of :func:`pipemap.sim.build_network` (drawing and the
 network's validation), the node and pipe counts, the loops (pipes beyond a spanning
-tree), the nodes by number of pipes and the pipe lengths.
+tree), the nodes by number of pipes, the pipe lengths (least, median, most, total,
+and how many fall in each band of metres) and ``drive_once_h``: hours the robot takes
+to drive every pipe once at its cruise speed, a floor on a run's simulated time.
 """
 
 from __future__ import annotations
@@ -20,8 +22,11 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipemap.sim import build_network  # noqa: E402
+from pipemap.sim.explorer_config import ExplorerConfig  # noqa: E402
 
 _DEFAULT = ("random:200", "random:1000", "grid:30x30", "tree:300")
+#: Bands of pipe length, metres: each counts the pipes from its bound to the next.
+_BANDS_M = (0.0, 2.0, 5.0, 10.0, 20.0)
 
 
 def measure(spec: str, seed: int) -> dict[str, object]:
@@ -46,6 +51,11 @@ def measure(spec: str, seed: int) -> dict[str, object]:
             "max": round(max(lengths), 2),
             "total": round(sum(lengths), 1),
         },
+        "pipes_by_m": {
+            f"{lo:g}-{hi:g}": sum(lo <= length < hi for length in lengths)
+            for lo, hi in zip(_BANDS_M, (*_BANDS_M[1:], float("inf")), strict=True)
+        },
+        "drive_once_h": round(sum(lengths) / ExplorerConfig().speed_mps / 3600.0, 2),
     }
 
 

@@ -322,6 +322,8 @@ class Localizer:
             deferred=tuple(n for n in self._hypotheses.open.get(index, ()) if n != node),
             settled=settled,
         )
+        if known:
+            self._odometry.closed(node)
         self._last = decision
         timer.lap("map")
         self.last_phases = timer.seconds

@@ -6,9 +6,14 @@ no valid layout in 2000 draws). Its networks are kept for N up to
 :data:`TOWN_ABOVE` (the logs, tests and benchmarks name them); above, this module
 draws the same kind of layout but repairs it locally:
 
-- points are scattered by dart throwing over a grid of cells, so a dart is checked
-  against its neighbours only, and pipes are checked against the pipes and nodes
-  near them through the same kind of grid (:class:`_Grid`);
+- the square is cut into districts of about :data:`_DISTRICT_NODES` nodes' worth,
+  each with its own node spacing drawn log-uniformly from 1.25 to 12 pipe spacings
+  (:class:`_Field`), so pipes run from 1 to 20 spacings (1-20 m at the default 1 m),
+  short in a dense district, long in a sparse one, as a town's mains between manholes;
+- points are scattered by dart throwing over a grid of cells, each dart kept with a
+  chance that makes a district's density follow its spacing and checked against its
+  neighbours only; pipes are checked against the pipes and nodes near them through
+  the same kind of grid (:class:`_Grid`), and none is longer than 20 spacings;
 - a spanning tree is grown from the Delaunay edges in a drawn order, then loops,
   about one pipe in six beyond the tree (``random``), as a town's mains close;
 - a node with two pipes that go nearly straight on (a corner the robot could not
@@ -43,7 +48,6 @@ from pipemap.sim.random_layout import (
     grow_tree,
     labelled,
     min_gap_m,
-    side_m,
 )
 
 __all__ = ["TOWN_ABOVE", "town_network"]
@@ -51,7 +55,14 @@ __all__ = ["TOWN_ABOVE", "town_network"]
 #: ``random:N`` and ``tree:N`` above this many nodes are drawn here.
 TOWN_ABOVE = 100
 _MAX_ATTEMPTS = 20
-#: Sideways pushes tried on a straight node, in pipe spacings.
+#: Passes over the straight nodes: a repair can straighten a neighbour, fixed next pass.
+_STRAIGHT_PASSES = 4
+#: Shortest and longest district spacing, and longest pipe, in pipe spacings: with
+#: the closest two nodes 0.8 of their spacing apart, pipes run 1 to 20 spacings.
+_DENSE, _SPARSE, _LONGEST = 1.25, 12.0, 20.0
+#: About this many nodes' worth of area makes a district.
+_DISTRICT_NODES = 30
+#: Sideways pushes tried on a straight node, in lengths of its shorter pipe.
 _PUSHES = (0.12, -0.12, 0.2, -0.2, 0.3, -0.3)
 
 XY = tuple[float, float]
@@ -91,17 +102,51 @@ def _box(a: XY, b: XY, margin_m: float) -> tuple[XY, XY]:
     return lo, hi
 
 
-def _scatter(n: int, rng: np.random.Generator, gap_m: float, side: float) -> np.ndarray | None:
-    """``n`` points in a square, pairwise at least ``gap_m`` apart, by dart throwing."""
-    grid = _Grid(gap_m)
+class _Field:
+    """A square of ``districts`` x ``districts`` districts, each with its own node
+    spacing (m), sized so that ``n`` nodes fill it as densely as :mod:`sim.random_layout`
+    fills its square."""
+
+    def __init__(self, n: int, rng: np.random.Generator, spacing_m: float) -> None:
+        self.districts = max(1, round(math.sqrt(n / _DISTRICT_NODES)))
+        lo, hi = math.log(_DENSE), math.log(_SPARSE)
+        draws = rng.uniform(lo, hi, size=self.districts**2)
+        self.spacing_m = np.round(spacing_m * np.exp(draws), 3)
+        self.dense_m = _DENSE * spacing_m
+        per_m2 = float(np.sum(1.0 / (1.96 * self.spacing_m**2)))
+        self.side_m = self.districts * math.sqrt(n / per_m2)
+
+    def at(self, p: XY) -> float:
+        """The spacing of the district holding ``p``."""
+        d = self.districts
+        i = min(d - 1, max(0, math.floor(p[0] / self.side_m * d)))
+        j = min(d - 1, max(0, math.floor(p[1] / self.side_m * d)))
+        return float(self.spacing_m[i * d + j])
+
+
+def _scatter(
+    n: int, rng: np.random.Generator, field: _Field, diameter_m: float
+) -> np.ndarray | None:
+    """``n`` points in the field's square by dart throwing: a dart is kept with a
+    chance of (densest spacing / its district's)^2, and two points are at least the
+    smaller of their districts' gaps apart."""
+    grid = _Grid(min_gap_m(field.dense_m, diameter_m))
     pts: list[XY] = []
-    darts = rng.uniform(0.0, side, size=(60 * n, 2))
-    for x, y in darts:
+    gaps: list[float] = []
+    keep = float(np.mean((field.dense_m / field.spacing_m) ** 2))
+    darts = rng.uniform(0.0, field.side_m, size=(math.ceil(60 * n / keep), 2))
+    chances = rng.uniform(0.0, 1.0, size=len(darts))
+    for (x, y), chance in zip(darts, chances, strict=True):
         cand = (float(x), float(y))
-        lo, hi = _box(cand, cand, gap_m)
-        if all(math.dist(cand, pts[k]) >= gap_m for k in grid.near(lo, hi)):
+        spacing = field.at(cand)
+        if chance >= (field.dense_m / spacing) ** 2:
+            continue
+        gap = min_gap_m(spacing, diameter_m)
+        lo, hi = _box(cand, cand, gap)
+        if all(math.dist(cand, pts[k]) >= min(gap, gaps[k]) for k in grid.near(lo, hi)):
             grid.insert(len(pts), cand, cand)
             pts.append(cand)
+            gaps.append(gap)
             if len(pts) == n:
                 return np.round(np.array(pts), 3)
     return None
@@ -110,9 +155,10 @@ def _scatter(n: int, rng: np.random.Generator, gap_m: float, side: float) -> np.
 class _TownBuilder:
     """Pipes added one at a time, each checked against the pipes and nodes near it."""
 
-    def __init__(self, pts: np.ndarray, diameter_m: float, cell_m: float) -> None:
+    def __init__(self, pts: np.ndarray, diameter_m: float, cell_m: float, longest_m: float) -> None:
         self.xy: list[XY] = [(float(x), float(y)) for x, y in pts]
         self.diameter_m = diameter_m
+        self.longest_m = longest_m
         self.clearance_m = _GEN_CLEARANCE_DIAMETERS * diameter_m
         self.heads: list[dict[int, float]] = [{} for _ in self.xy]
         self.edges: dict[int, tuple[int, int]] = {}
@@ -130,7 +176,7 @@ class _TownBuilder:
 
     def _fits(self, u: int, v: int) -> bool:
         pu, pv = self.xy[u], self.xy[v]
-        if math.dist(pu, pv) < MIN_PIPE_DIAMETERS * self.diameter_m:
+        if not MIN_PIPE_DIAMETERS * self.diameter_m <= math.dist(pu, pv) <= self.longest_m:
             return False
         for a, b in ((u, v), (v, u)):
             h = self.heading(a, b)
@@ -168,6 +214,10 @@ class _TownBuilder:
             return False
         h1, h2 = self.heads[i].values()
         return abs(wrap_rad(h1 - h2)) > _GEN_STRAIGHT_RAD
+
+    def shorter_m(self, i: int) -> float:
+        """Length of the shorter pipe at node ``i``."""
+        return min(math.dist(self.xy[i], self.xy[w]) for w in self.heads[i])
 
     def push(self, i: int, offset_m: float) -> bool:
         """Move node ``i`` (two pipes) sideways by ``offset_m`` if every rule still holds."""
@@ -212,14 +262,14 @@ class _Repair:
 
     builder: _TownBuilder
     rng: np.random.Generator
-    spacing_m: float
+    field: _Field
     gap_m: float
     entry: int = -1
 
 
 def _reattach(fix: _Repair) -> bool:
     """Move every node the tree could not reach (hemmed in by pipes that pass it) to a
-    free spot one spacing from a reached node with room for a pipe, as a dead end;
+    free spot one district spacing from a reached node with room for a pipe, as a dead end;
     whether every node is then reached."""
     builder = fix.builder
     n = len(builder.xy)
@@ -301,13 +351,14 @@ def _components(builder: _TownBuilder) -> list[int]:
 
 
 def _stub(fix: _Repair, i: int, hosts: list[int]) -> bool:
-    """Move node ``i`` (no pipes) to a free spot one spacing from one of ``hosts`` and
-    join them; whether a spot fitted (else ``i`` stays where it was)."""
-    builder, rng, spacing_m, gap_m = fix.builder, fix.rng, fix.spacing_m, fix.gap_m
+    """Move node ``i`` (no pipes) to a free spot one district spacing from one of
+    ``hosts`` and join them; whether a spot fitted (else ``i`` stays where it was)."""
+    builder, rng, gap_m = fix.builder, fix.rng, fix.gap_m
     old = builder.xy[i]
     builder.node_grid.remove(i, old, old)
     for h in (hosts[int(k)] for k in rng.permutation(len(hosts))[:256]):
         turn = float(rng.uniform(0.0, 2.0 * math.pi))
+        spacing_m = fix.field.at(builder.xy[h])
         for k in range(12):
             angle = turn + k * math.pi / 6.0
             hx, hy = builder.xy[h]
@@ -331,18 +382,33 @@ def _stub(fix: _Repair, i: int, hosts: list[int]) -> bool:
     return False
 
 
+def _unstraighten(fix: _Repair, i: int, free: list[tuple[int, int]], loops: bool) -> bool:
+    """Make straight node ``i`` turn: a loop pipe, a push sideways, a splice elsewhere
+    or a dead end lent to it; whether one worked."""
+    builder = fix.builder
+    extra = next((e for e in free if i in e and builder.can_add(*e)), None)
+    if extra is not None and loops:
+        builder.add(*extra)
+        return True
+    return (
+        any(builder.push(i, k * builder.shorter_m(i)) for k in _PUSHES)
+        or _splice(fix, i)
+        or _lend_leaf(fix, i)
+    )
+
+
 def _try_town(
     n: int, rng: np.random.Generator, spacing_m: float, loops: bool, diameter_m: float
 ) -> Network | None:
     """One draw of a town layout; ``None`` when it fails a requirement after repair."""
-    gap_m = min_gap_m(spacing_m, diameter_m)
-    pts = _scatter(n, rng, gap_m, side_m(n, spacing_m))
+    field = _Field(n, rng, spacing_m)
+    pts = _scatter(n, rng, field, diameter_m)
     candidates = [] if pts is None else _candidate_edges(pts)
     if pts is None or not candidates:
         return None
     order = [candidates[int(i)] for i in rng.permutation(len(candidates))]
-    builder = _TownBuilder(pts, diameter_m, cell_m=2.0 * spacing_m)
-    fix = _Repair(builder, rng, spacing_m, gap_m)
+    builder = _TownBuilder(pts, diameter_m, 2.0 * field.dense_m, _LONGEST * spacing_m)
+    fix = _Repair(builder, rng, field, min_gap_m(field.dense_m, diameter_m))
     spare = grow_tree(builder, order, n)
     if len(builder.edges) != n - 1 and not _reattach(fix):
         return None
@@ -358,16 +424,12 @@ def _try_town(
             if builder.can_add(u, v):
                 builder.add(u, v)
                 added += 1
-    for i in range(n):
-        if builder.straight(i):
-            extra = next((e for e in free if i in e and builder.can_add(*e)), None)
-            if extra is not None and loops:
-                builder.add(*extra)
-            elif not (
-                any(builder.push(i, k * spacing_m) for k in _PUSHES)
-                or _splice(fix, i)
-                or _lend_leaf(fix, i)
-            ):
+    for _ in range(_STRAIGHT_PASSES):
+        straight = [i for i in range(n) if builder.straight(i)]
+        if not straight:
+            break
+        for i in straight:
+            if builder.straight(i) and not _unstraighten(fix, i, free, loops):
                 return None
     if any(builder.straight(i) for i in range(n)):
         return None
@@ -375,6 +437,6 @@ def _try_town(
 
 
 def town_network(spec: str, n: int, seed: int, spacing_m: float, loops: bool) -> Network:
-    """An ``n``-node town layout drawn from ``seed``, pipes about ``spacing_m`` long, with
-    loops if ``loops``; ``spec`` names it in the error when no draw succeeds."""
+    """An ``n``-node town layout drawn from ``seed``, pipes 1 to 20 times ``spacing_m``
+    long, with loops if ``loops``; ``spec`` names it in the error when no draw succeeds."""
     return first_draw(spec, seed, _MAX_ATTEMPTS, _try_town, n, spacing_m, loops)

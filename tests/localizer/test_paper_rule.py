@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from pipemap.localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
-from pipemap.localizer.config import PAPER, PIPEMAP_CHECKS
+from pipemap.localizer.config import PAPER, PIPEMAP_CHECKS, PIPEMAP_REFINEMENTS
 from tests.localizer.junctions import CORNER_EXITS, FOV_RAD, TEE_EXITS, junction, views
 
 
@@ -19,7 +19,7 @@ def test_the_paper_rule_has_none_of_pipemaps_checks() -> None:
     # Algorithm 3) and nothing else. A check added later that the rule kept fails here.
     switches = {f.name: getattr(PAPER, f.name) for f in fields(PAPER) if f.type == "bool"}
     assert {name for name, on in switches.items() if on} == {"active_vision"}
-    assert set(PIPEMAP_CHECKS) == set(switches) - {"active_vision"}
+    assert set(PIPEMAP_CHECKS) | set(PIPEMAP_REFINEMENTS) == set(switches) - {"active_vision"}
     assert LocalizerConfig().paper_rule() == PAPER
     assert (PAPER.threshold, PAPER.fast, PAPER.lamp) == (0.36, FastConfig(), None)
     # The rule changes the checks, never the threshold, similarity or lighting.

@@ -35,6 +35,9 @@ def _digest(net: Network) -> str:
         ("random:24", 35, "9bc03984ed22816c"),
         ("tree:12", 3, "3730c34a5ecf9497"),
         ("grid:5x5", 0, "80cdef0b6684bb6f"),
+        ("random:50", 40, "a7e4fa76c4eb8ab6"),
+        ("tree:60", 7, "0e1c85cef2029415"),
+        ("random:100", 0, "cb22588725769d77"),
     ],
 )
 def test_specs_up_to_100_nodes_draw_the_networks_they_always_drew(
@@ -71,6 +74,28 @@ def test_town_tree_is_a_tree(n: int, seed: int) -> None:
     net = build_network(f"tree:{n}", seed=seed)
     _check_town(net, n)
     assert len(net.pipes) == n - 1
+
+
+def _lengths(net: Network) -> list[float]:
+    return [net.length_m(p.a, p.b) for p in net.pipes]
+
+
+@pytest.mark.parametrize(
+    ("spec", "seed"), [("random:200", 75), ("random:1000", 1), ("tree:1000", 0)]
+)
+def test_town_pipes_spread_over_1_to_20_m(spec: str, seed: int) -> None:
+    lengths = _lengths(build_network(spec, seed=seed))
+    assert 1.0 <= min(lengths) < 1.5, "dense districts keep pipes of about a metre"
+    assert 15.0 < max(lengths) <= 20.0, "sparse districts have mains of up to 20 m"
+    share = sum(length > 5.0 for length in lengths) / len(lengths)
+    assert 0.1 < share < 0.5, f"{share:.2f} of the pipes over 5 m: short pipes stay the most"
+
+
+def test_town_pipe_lengths_follow_the_spacing() -> None:
+    lengths = _lengths(build_network("random:300", seed=2, spacing_m=0.5))
+    assert min(lengths) >= 0.5
+    assert max(lengths) <= 10.0
+    assert max(lengths) > 5.0
 
 
 def test_town_networks_are_seeded() -> None:
