@@ -67,6 +67,10 @@ class LocalizerConfig:
     #: the best other junction fit with 17; distractors reached 20 at most
     #: (``benchmarks/bench_localizer.py --check-distractors``).
     expected_inliers: int = 24
+    #: When the expected junction's fit falls short, fit it again on keypoints of its
+    #: images at full detail (:mod:`localizer.closer`), this many an image.
+    closer_look: bool = True
+    closer_keypoints_per_image: int = 400
     #: A sweep with fewer keypoints is decided by the threshold (a 32 px sweep has
     #: about 25, a 96 px one about 2000).
     verify_min_keypoints: int = 200
@@ -145,6 +149,8 @@ class LocalizerConfig:
             raise LocalizerError(
                 "verify_inliers, expected_inliers and verify_candidates must be >= 1"
             )
+        if self.closer_keypoints_per_image < 1:
+            raise LocalizerError("closer_keypoints_per_image must be >= 1")
         odometry = (
             self.odometry_radius_m,
             self.odometry_drift_per_m,
