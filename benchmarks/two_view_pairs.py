@@ -1,5 +1,5 @@
 """How well the two-view check's keypoints tell a log's junctions apart, reduced and at
-the closer look's full detail.
+the closer look's keypoints.
 
     python benchmarks/two_view_pairs.py LOG [LOG ...] [--guesses N]
 
@@ -79,7 +79,7 @@ def main() -> int:
     check = LocalizerConfig().two_view_config
     kinds = {
         "check (reduced)": check,
-        "closer look (full detail)": closer_config(
+        "closer look (800 an image)": closer_config(
             check, LocalizerConfig().closer_keypoints_per_image
         ),
     }

@@ -9,7 +9,7 @@ then the check's stages (:mod:`pipemap.localizer.stages`) redone on the same
 keypoints: the keypoints of each sweep, the matches at the guess (each image with
 the images it can overlap), the best count on the coarse grid after each stage
 against what that stage's gate asks, and the refined fit's inliers with every
-stage matched; then the same pair at the closer look's full detail
+stage matched; then the same pair on the closer look's keypoints
 (:mod:`pipemap.localizer.closer`). Last, the decision as ``pipemap -v score``
 prints it.
 
@@ -131,7 +131,7 @@ def main() -> int:
         for label, tv in (
             ("reduced (the check)", config.two_view_config),
             (
-                "full detail (closer look)",
+                "closer look (800 keypoints an image)",
                 closer_config(config.two_view_config, config.closer_keypoints_per_image),
             ),
         ):

@@ -67,10 +67,11 @@ class LocalizerConfig:
     #: the best other junction fit with 17; distractors reached 20 at most
     #: (``benchmarks/bench_localizer.py --check-distractors``).
     expected_inliers: int = 24
-    #: When the expected junction's fit falls short, fit it again on keypoints of its
-    #: images at full detail (:mod:`localizer.closer`), this many an image.
+    #: When the expected junction's fit falls short on images the check reduced, fit it
+    #: again on more keypoints of them (:mod:`localizer.closer`): this many an image, as
+    #: many as the check keeps of images it sees whole (``TwoViewConfig``).
     closer_look: bool = True
-    closer_keypoints_per_image: int = 400
+    closer_keypoints_per_image: int = 800
     #: A sweep with fewer keypoints is decided by the threshold (a 32 px sweep has
     #: about 25, a 96 px one about 2000).
     verify_min_keypoints: int = 200

@@ -87,7 +87,7 @@ class Localizer:
         self._matcher = FastMatcher(self.config.fast)
         #: Keypoints by node (with ``config.two_view``), computed once per sweep, kept compact.
         self._features: list[StoredFeatures] = []
-        self._closer = CloserLook(self.config)  # and at full detail (localizer.closer)
+        self._closer = CloserLook(self.config)  # more keypoints (localizer.closer)
         self._hypotheses = Hypotheses(
             TopoMap(), self.config.hypotheses, self.config.hypothesis_prune_ratio
         )
@@ -400,7 +400,7 @@ class Localizer:
     ) -> TwoViewFit | None:
         """The two-view fit of the sweep with known junction ``node`` (unturned), with at
         least ``needed`` inliers, at the NCC's rotation or another the ports allow, or on
-        the keypoints of ``closer`` at full detail (:func:`localizer.verify.candidate_fit`)."""
+        more keypoints of ``closer`` (:func:`localizer.verify.candidate_fit`)."""
         return candidate_fit(
             features,
             self._features[node].features(),

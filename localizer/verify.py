@@ -70,7 +70,7 @@ def candidate_fit(
     not is returned only when none does (for the caller to pass the candidate over,
     and say why). ``any_rotation``: without ``rotations``, fit again without a
     guess when the guided fit fails. ``cache`` shares the keypoint distances among
-    the fits. ``closer``, if given, gives the two sweeps' keypoints at full detail
+    the fits. ``closer``, if given, gives more keypoints of the two sweeps
     (:mod:`localizer.closer`): where no fit reaches ``needed``, the candidate is fitted
     once more on those (when it gives them).
     """

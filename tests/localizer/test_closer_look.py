@@ -1,8 +1,8 @@
 """The closer look (``localizer/closer.py``) on the revisit that made it needed.
 
-``data/random17_seed7_visits_6_18.npz``: two sweeps of one junction from the
-400 px run of ``random:17`` seed 7 (no probe moves changed it), as its log holds them
-(lamp-lit 8-bit frames, exits, departures). Visit 6 saw the junction first; visit 18
+``data/random17_seed7_visits_6_18.npz``: two sweeps of one junction from the 400 px
+run of ``random:17`` seed 7 with probe moves (visit 18 asked for none), as its log
+holds them (lamp-lit 8-bit frames, exits, departures). Visit 6 saw the junction first; visit 18
 came back to it out of a dead end and stopped 10.4 cm from visit 6's spot. Written
 by ``python benchmarks/why_two_view.py LOG 18 --save PATH`` on that run's log.
 """
@@ -73,7 +73,7 @@ def test_the_reduced_keypoints_fall_short_where_full_detail_fits(
     data: np.lib.npyio.NpzFile,
 ) -> None:
     """The cause: on the reduced images the pair fits with 23 inliers, one short of
-    the expected junction's 24; at full detail with 44."""
+    the expected junction's 24; on the closer look's keypoints with 43."""
     illumination = LocalizerConfig().illumination
     query, known = (normalised(_sweep(data, v), illumination) for v in (18, 6))
     base = replace(TwoViewConfig(), min_inliers=LocalizerConfig().expected_inliers)
