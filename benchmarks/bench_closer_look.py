@@ -69,7 +69,8 @@ def _quickest(repeat: int, work: Callable[[Any], object], setup: Callable[[], An
 def _revisit(data: Any, closer_look: bool) -> Localizer:
     """A localizer that has seen visit 6's junction and a dead end beyond it, back
     from the dead end: it expects visit 6's junction."""
-    loc = Localizer(LocalizerConfig(lamp=True, closer_look=closer_look))
+    keypoints = LocalizerConfig().closer_keypoints_per_image if closer_look else 0
+    loc = Localizer(LocalizerConfig(lamp=True, closer_keypoints_per_image=keypoints))
     loc.localize(_sweep(data, 6), exits_rad=tuple(data["exits_6"]))
     loc.depart(float(data["exits_6"][0]))
     noise = np.random.default_rng(7).integers(0, 256, data["frames_6"].shape, dtype=np.uint8)

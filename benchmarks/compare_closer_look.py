@@ -43,7 +43,7 @@ def _outcome(report: ScoreReport) -> str:
 def compare(path: Path) -> str:
     """The line for one log."""
     on, on_report = _scored(path, LocalizerConfig())
-    off, off_report = _scored(path, replace(LocalizerConfig(), closer_look=False))
+    off, off_report = _scored(path, replace(LocalizerConfig(), closer_keypoints_per_image=0))
     messages = [
         [decision_message(0, v.visit_id, v.decision, 0.0).SerializeToString() for v in r.visits]
         for r in (on, off)

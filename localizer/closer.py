@@ -52,7 +52,6 @@ class CloserLook:
     (computed only when asked for)."""
 
     def __init__(self, config: LocalizerConfig) -> None:
-        self._on = config.closer_look
         self._base = config.two_view_config
         self._config = closer_config(self._base, config.closer_keypoints_per_image)
         self._known: dict[int, StoredFeatures] = {}
@@ -68,9 +67,8 @@ class CloserLook:
         return more and detection_factor(width, self._base) > 1
 
     def keep(self, node: int, image_set: ImageSet) -> None:
-        """Remember the closer look's keypoints of new junction ``node``'s sweep (with
-        ``closer_look`` on)."""
-        if self._on and self.sharper(image_set):
+        """Remember the closer look's keypoints of new junction ``node``'s sweep."""
+        if self.sharper(image_set):
             self._known[node] = stored_features(image_set, self._config)
 
     def known(self, node: int) -> SweepFeatures | None:

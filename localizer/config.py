@@ -69,8 +69,8 @@ class LocalizerConfig:
     expected_inliers: int = 24
     #: When the expected junction's fit falls short on images the check reduced, fit it
     #: again on more keypoints of them (:mod:`localizer.closer`): this many an image, as
-    #: many as the check keeps of images it sees whole (``TwoViewConfig``).
-    closer_look: bool = True
+    #: many as the check keeps of images it sees whole (``TwoViewConfig``). 0: no closer
+    #: look. Part of the two-view check (``verify``), not a check of its own.
     closer_keypoints_per_image: int = 800
     #: A sweep with fewer keypoints is decided by the threshold (a 32 px sweep has
     #: about 25, a 96 px one about 2000).
@@ -150,8 +150,8 @@ class LocalizerConfig:
             raise LocalizerError(
                 "verify_inliers, expected_inliers and verify_candidates must be >= 1"
             )
-        if self.closer_keypoints_per_image < 1:
-            raise LocalizerError("closer_keypoints_per_image must be >= 1")
+        if self.closer_keypoints_per_image < 0:
+            raise LocalizerError("closer_keypoints_per_image must be >= 0")
         odometry = (
             self.odometry_radius_m,
             self.odometry_drift_per_m,

@@ -439,7 +439,7 @@ class Localizer:
         turn: float,
         exits: tuple[float, ...] | None,
         rejected: list[tuple[int, str]],
-        matched: ImageSet,
+        matched: ImageSet | None = None,
     ) -> tuple[int, TwoViewFit, PortMatch | None, tuple[int, ...]] | None:
         """The first of the junction the map expects (:meth:`expected_node`) and the
         best junctions (refined ones first, each by similarity) that the sweep's

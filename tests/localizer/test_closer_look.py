@@ -58,7 +58,8 @@ def _walk(loc: Localizer, data: np.lib.npyio.NpzFile) -> tuple[int, object]:
 def test_the_revisit_10_cm_off_is_recognised_by_the_closer_look(
     data: np.lib.npyio.NpzFile, closer_look: bool
 ) -> None:
-    loc = Localizer(LocalizerConfig(lamp=True, closer_look=closer_look))
+    keypoints = LocalizerConfig().closer_keypoints_per_image if closer_look else 0
+    loc = Localizer(LocalizerConfig(lamp=True, closer_keypoints_per_image=keypoints))
     node, decision = _walk(loc, data)
     assert decision.known is closer_look  # type: ignore[attr-defined]
     if closer_look:
@@ -116,4 +117,4 @@ def test_a_sweep_the_check_sees_whole_gets_no_closer_look(data: np.lib.npyio.Npz
 
 def test_closer_keypoints_are_validated() -> None:
     with pytest.raises(LocalizerError, match="closer_keypoints_per_image"):
-        LocalizerConfig(closer_keypoints_per_image=0)
+        LocalizerConfig(closer_keypoints_per_image=-1)
