@@ -7,8 +7,9 @@ On the two 400 px lamp-lit sweeps of ``tests/localizer/data/random17_seed7_visit
 OpenCV threads pinned to one:
 
 1. ORB keypoints of one sweep as the check computes them (reduced to 200 px, 250 an
-   image) and as the closer look computes them (the same images, 800 an image), and the
-   bytes a known junction keeps of each: what every new junction now costs in addition;
+   image) and as the closer look computes them (the images at their own size, 400 an
+   image), and the bytes a known junction keeps of each: what every new junction now
+   costs in addition;
 2. the decision of the revisit (visit 18) by a localizer that knows the junction and
    expects it (the walk of ``tests/localizer/test_closer_look.py``), with the closer
    look (it is taken, and fits) and without (the visit is new).
@@ -89,7 +90,7 @@ def main() -> int:
     check = config.two_view_config
     closer = closer_config(check, config.closer_keypoints_per_image)
     print(f"# {DATA.name}, 400 px, one core, quickest of {args.repeat}, CPU ms")
-    for label, tv in (("check (reduced)", check), ("closer look (800 an image)", closer)):
+    for label, tv in (("check (reduced)", check), ("closer look (full detail)", closer)):
         ms = _quickest(args.repeat, lambda tv: stored_features(lit, tv), lambda tv=tv: tv)
         kept = stored_features(lit, tv)
         print(

@@ -79,7 +79,7 @@ def main() -> int:
     check = LocalizerConfig().two_view_config
     kinds = {
         "check (reduced)": check,
-        "closer look (800 an image)": closer_config(
+        "closer look (full detail)": closer_config(
             check, LocalizerConfig().closer_keypoints_per_image
         ),
     }

@@ -131,7 +131,7 @@ def main() -> int:
         for label, tv in (
             ("reduced (the check)", config.two_view_config),
             (
-                "closer look (800 keypoints an image)",
+                "closer look (full detail)",
                 closer_config(config.two_view_config, config.closer_keypoints_per_image),
             ),
         ):

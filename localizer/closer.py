@@ -1,20 +1,25 @@
-"""A closer look: the two-view check of the junction the map expects, on more keypoints.
+"""A closer look: the two-view check of the junction the map expects, at full detail.
 
 Sweeps wider than :attr:`TwoViewConfig.detect_width_px` give ORB their images
 reduced (400 px to 200 px), and the check keeps 250 keypoints an image of them
-(:func:`localizer.twoview.stored_features`), where it keeps 800 of images it sees
-whole: a third of the cost, and the same decisions where the robot sweeps a junction
-from near where it swept it before. From a spot 10 cm away the near walls change too
-much for that budget. On ``random:17`` seed 7 at 400 px the robot came back to a
-junction out of a dead end and stopped 10.4 cm from where it had swept it first (12.6
-cm in the run without probe moves); the fit had 23 inliers (11), where the junction
-the map expects needs 24 (:attr:`LocalizerConfig.expected_inliers`, set from the same
-return at 200 px, 33 inliers), and the map went wrong.
+(:func:`localizer.twoview.stored_features`): a third of the cost, and the same
+decisions where the robot sweeps a junction from near where it swept it before. From
+a spot 10 cm away the near walls change too much for those keypoints. On
+``random:17`` seed 7 at 400 px the robot came back to a junction out of a dead end
+and stopped 10.4 cm from where it had swept it first; the fit had 23 inliers where
+the junction the map expects needs 24 (:attr:`LocalizerConfig.expected_inliers`),
+and the map went wrong.
 
 So when the fit with the junction the map expects (:meth:`Localizer.expected_node`)
-falls short on reduced images, it is made once more on 800 keypoints of each of them,
-as a 200 px sweep has, with the same bar. The same returns fit with 43 and 32 inliers.
-How far apart this keeps junctions: ``benchmarks/two_view_pairs.py`` (docs/localizer.md).
+falls short on reduced images, it is made once more on keypoints of the images at
+their own size (up to 400 px; 400 an image), with the same bar: the same return fits
+with 44 inliers. Keypoints at full detail keep junctions apart better than the
+check's: over that log's 136 pairs of different junctions, at 12 guessed rotations
+and none, the most inliers were 11 against the check's 15
+(``benchmarks/two_view_pairs.py``, docs/localizer.md). More keypoints of the reduced
+images (800 an image, as a 200 px sweep has) fitted the return as well, and one 12.6
+cm off that this does not (32 inliers against 20), but gave different junctions up to
+25: no margin below 24.
 
 Only the expected junction gets the closer look, and only after its fit failed; a
 sweep the check sees whole (200 px and less) gets none. Its cost
@@ -42,9 +47,14 @@ __all__ = ["CloserLook", "closer_config"]
 
 
 def closer_config(config: TwoViewConfig, keypoints_per_image: int) -> TwoViewConfig:
-    """``config`` for the closer look: the images reduced as the check reduces them,
-    ``keypoints_per_image`` kept of each."""
-    return replace(config, reduced_keypoints_per_image=keypoints_per_image)
+    """``config`` for the closer look: images reduced to at most twice
+    ``detect_width_px`` (a 400 px sweep's own size), ``keypoints_per_image`` each."""
+    return replace(
+        config,
+        detect_width_px=2 * config.detect_width_px,
+        keypoints_per_image=keypoints_per_image,
+        reduced_keypoints_per_image=keypoints_per_image,
+    )
 
 
 class CloserLook:
@@ -60,11 +70,11 @@ class CloserLook:
         self.taken = 0
 
     def sharper(self, image_set: ImageSet) -> bool:
-        """Whether the closer look keeps more keypoints of ``image_set`` than the check
-        does (its images are reduced for the check, which then keeps fewer)."""
+        """Whether the closer look sees ``image_set`` in more detail than the check
+        does (its images were reduced for the check); never with 0 keypoints."""
         width = int(image_set.images.shape[2])
-        more = self._config.reduced_keypoints_per_image > self._base.reduced_keypoints_per_image
-        return more and detection_factor(width, self._base) > 1
+        finer = detection_factor(width, self._config) < detection_factor(width, self._base)
+        return finer and self._config.keypoints_per_image > 0
 
     def keep(self, node: int, image_set: ImageSet) -> None:
         """Remember the closer look's keypoints of new junction ``node``'s sweep."""

@@ -68,10 +68,10 @@ class LocalizerConfig:
     #: (``benchmarks/bench_localizer.py --check-distractors``).
     expected_inliers: int = 24
     #: When the expected junction's fit falls short on images the check reduced, fit it
-    #: again on more keypoints of them (:mod:`localizer.closer`): this many an image, as
-    #: many as the check keeps of images it sees whole (``TwoViewConfig``). 0: no closer
-    #: look. Part of the two-view check (``verify``), not a check of its own.
-    closer_keypoints_per_image: int = 800
+    #: again on keypoints of the images at their own size, up to 400 px (this many an
+    #: image; :mod:`localizer.closer`). 0: no closer look. Part of the two-view check
+    #: (``verify``), not a check of its own.
+    closer_keypoints_per_image: int = 400
     #: A sweep with fewer keypoints is decided by the threshold (a 32 px sweep has
     #: about 25, a 96 px one about 2000).
     verify_min_keypoints: int = 200

@@ -49,8 +49,8 @@ def test_two_view_pairs_counts_pairs_of_one_and_of_different_junctions() -> None
 
 def test_bench_closer_look_decides_the_return_known_with_it_and_new_without() -> None:
     lines = _run("bench_closer_look.py", "--repeat", "1")
-    assert "3243 keypoints" in lines[2]
+    assert "2122 keypoints" in lines[2]
     assert lines[3].startswith("revisit, closer look on:") and lines[3].endswith(
-        "known, 43 inliers"
+        "known, 44 inliers"
     )
     assert lines[4].startswith("revisit, closer look off:") and lines[4].endswith("new")

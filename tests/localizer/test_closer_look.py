@@ -74,7 +74,7 @@ def test_the_reduced_keypoints_fall_short_where_full_detail_fits(
     data: np.lib.npyio.NpzFile,
 ) -> None:
     """The cause: on the reduced images the pair fits with 23 inliers, one short of
-    the expected junction's 24; on the closer look's keypoints with 43."""
+    the expected junction's 24; on the closer look's keypoints with 44."""
     illumination = LocalizerConfig().illumination
     query, known = (normalised(_sweep(data, v), illumination) for v in (18, 6))
     base = replace(TwoViewConfig(), min_inliers=LocalizerConfig().expected_inliers)
