@@ -70,6 +70,11 @@ class LocalizerConfig:
     #: the best other junction fit with 17; distractors reached 20 at most
     #: (``benchmarks/bench_localizer.py --check-distractors``).
     expected_inliers: int = 24
+    #: When the expected junction's fit falls short on images the check reduced, fit it
+    #: again on keypoints of the images at their own size, up to 400 px (this many an
+    #: image; :mod:`localizer.closer`). 0: no closer look. Part of the two-view check
+    #: (``verify``), not a check of its own.
+    closer_keypoints_per_image: int = 400
     #: A sweep with fewer keypoints is decided by the threshold (a 32 px sweep has
     #: about 25, a 96 px one about 2000).
     verify_min_keypoints: int = 200
@@ -156,6 +161,8 @@ class LocalizerConfig:
             raise LocalizerError(
                 "verify_inliers, expected_inliers and verify_candidates must be >= 1"
             )
+        if self.closer_keypoints_per_image < 0:
+            raise LocalizerError("closer_keypoints_per_image must be >= 0")
         odometry = (
             self.odometry_radius_m,
             self.odometry_drift_per_m,

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 from pipemap.localizer.verify import candidate_fit
 
 if TYPE_CHECKING:
+    from pipemap.localizer.imageset import ImageSet
     from pipemap.localizer.localizer import Localizer
     from pipemap.localizer.twoview import StoredFeatures, SweepFeatures, TwoViewFit
 
@@ -87,16 +88,18 @@ def fit_once(
     needed: int,
     exits: tuple[float, ...] | None,
     turn: float,
+    closer: ImageSet | None = None,
 ) -> TwoViewFit | None:
     """``Localizer._fit``: the two-view fit of the visit's sweep ``features`` with
     known junction ``node`` (unturned), with at least ``needed`` inliers, at the
-    NCC's rotation ``guess_rad`` or another the ports allow
-    (:func:`localizer.verify.candidate_fit`), through the localizer's
-    :class:`VisitFits`. The key holds every argument and the junction's ports in the
-    localizer's map, which the rotations allowed and the port check read."""
+    NCC's rotation ``guess_rad`` or another the ports allow, or on more keypoints of
+    the visit's ``closer`` image set (:func:`localizer.verify.candidate_fit`,
+    :mod:`localizer.closer`), through the localizer's :class:`VisitFits`. The key
+    holds every argument and the junction's ports in the localizer's map, which the
+    rotations allowed and the port check read."""
     config = loc.config
     rotations = loc._allowed_rotations(node, exits, turn)
-    key = (guess_rad, needed, exits, turn, loc.map.ports(node), rotations)
+    key = (guess_rad, needed, exits, turn, loc.map.ports(node), rotations, id(closer))
     stored = loc._features[node]
     return loc._fits.fit(
         features,
@@ -113,5 +116,6 @@ def fit_once(
             lambda fit: loc._agrees(node, exits, fit.turned(turn).rotation_rad),
             bool(config.lamp),
             config.port_tolerance_rad,
+            closer=None if closer is None else lambda: loc._closer.pair(node, closer),
         ),
     )

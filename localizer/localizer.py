@@ -12,15 +12,11 @@ and sweeps; a replay looks the sweep up in the log) or answers ``None`` when it
 cannot, which the decision records.
 
 Ports: the caller may pass the junction's exits (the pipes the robot's range scan
-found, as headings relative to the robot). A new junction keeps them as its ports;
-a revisit's exits, turned by the measured rotation, must line up with the known
-junction's ports (:mod:`localizer.ports`). A candidate whose ports disagree is
-evidence against the match: it is passed over, and the next candidate is tried
-(the visit is new when none is left). The range scan is a second, independent
-sensor; a false merge corrupts the map's topology and makes an explorer skip
-pipes, while a false new node only costs a second look, which later traversals
-expose as port conflicts. :meth:`Localizer.depart` records the port the robot
-leaves by.
+found, relative to its heading). A new junction keeps them as its ports; a revisit's
+exits, turned by the measured rotation, must line up with the known junction's ports
+(:mod:`localizer.ports`), or the candidate is passed over (the visit is new when none
+is left): a false merge corrupts the map's topology, a false new node only costs a
+second look. :meth:`Localizer.depart` records the port the robot leaves by.
 """
 
 from __future__ import annotations
@@ -29,6 +25,7 @@ import math
 from collections.abc import Callable, Sequence
 
 from pipemap.localizer.branching import Fit, alike_branches, new_branch
+from pipemap.localizer.closer import CloserLook
 from pipemap.localizer.config import DEFAULT_THRESHOLD, PAPER, LocalizerConfig
 from pipemap.localizer.decision import (
     Decision,
@@ -91,6 +88,7 @@ class Localizer:
         #: Keypoints by node (with ``config.two_view``), computed once per sweep, kept compact.
         self._features: list[StoredFeatures] = []
         self._fits = VisitFits()
+        self._closer = CloserLook(self.config)  # more keypoints (localizer.closer)
         self._hypotheses = Hypotheses(
             TopoMap(), self.config.hypotheses, self.config.hypothesis_prune_ratio
         )
@@ -222,7 +220,7 @@ class Localizer:
             features = stored.features()
             timer.lap("keypoints")
         if features is not None and self.config.verify and self._checkable(features):
-            verified = self._verified(features, matched_all, turn, exits, rejected)
+            verified = self._verified(features, matched_all, turn, exits, rejected, matched)
             known = verified is not None
             if verified is not None:
                 best, raw_fit, ports, alike = verified
@@ -274,6 +272,7 @@ class Localizer:
                     stored = stored_features(query, self.config.two_view_config)
                     timer.lap("keypoints")
                 self._features.append(stored)
+                self._closer.keep(node, query)
             exit_ports = None
             if exits is not None:
                 new_ports, exit_ports = clockwise_ports(exits)
@@ -421,6 +420,7 @@ class Localizer:
         turn: float,
         exits: tuple[float, ...] | None,
         rejected: list[tuple[int, str]],
+        matched: ImageSet | None = None,
     ) -> tuple[int, TwoViewFit, PortMatch | None, tuple[int, ...]] | None:
         """The first of the junction the map expects (:meth:`expected_node`) and the
         best junctions (refined ones first, each by similarity) that the sweep's
@@ -450,12 +450,12 @@ class Localizer:
         if expected is not None and allowed(expected):
             ranked = [expected, *(i for i in ranked if i != expected)]
         for i in ranked:
-            # The map's junction needs fewer inliers than the others (see
-            # ``expected_inliers``). A fit with fewer would not count: let it stop as
-            # soon as it knows (so only the junction that fits pays for the tilted
-            # refinement).
+            # The map's junction needs fewer inliers (``expected_inliers``), and gets a
+            # closer look. A fit with fewer would not count: let it stop as soon as it
+            # knows (so only the junction that fits pays for the tilted refinement).
             needed = self.config.expected_inliers if i == expected else self.config.verify_inliers
-            fit = self._fit(i, features, matches[i].rotation_rad, needed, exits, turn)
+            closer = matched if i == expected else None
+            fit = self._fit(i, features, matches[i].rotation_rad, needed, exits, turn, closer)
             if fit is not None and fit.inliers >= needed:
                 ports = self._ports_of(i, exits, fit.turned(turn).rotation_rad)
                 if ports is not None and not ports.agrees and self.config.port_check:

@@ -58,6 +58,7 @@ def candidate_fit(
     any_rotation: bool,
     tolerance_rad: float,
     cache: MatchCache | None = None,
+    closer: Callable[[], tuple[SweepFeatures, SweepFeatures] | None] | None = None,
 ) -> TwoViewFit | None:
     """The fit of the visit's sweep ``query`` with a candidate's ``known`` sweep: at
     least ``needed`` inliers, or ``None``.
@@ -69,49 +70,60 @@ def candidate_fit(
     not is returned only when none does (for the caller to pass the candidate over,
     and say why). ``any_rotation``: without ``rotations``, fit again without a
     guess when the guided fit fails. ``cache`` shares the keypoint distances among
-    the fits.
+    the fits. ``closer``, if given, gives more keypoints of the two sweeps
+    (:mod:`localizer.closer`): where no fit reaches ``needed``, the candidate is fitted
+    once more on those (when it gives them).
     """
 
-    if (
-        cache is None
-        and query.image is not None
-        and _refits(guess_rad, rotations, any_rotation, config)
-    ):
-        cache = MatchCache(query)
+    def fit_pair(
+        query: SweepFeatures, known: SweepFeatures, cache: MatchCache | None
+    ) -> TwoViewFit | None:
+        if (
+            cache is None
+            and query.image is not None
+            and _refits(guess_rad, rotations, any_rotation, config)
+        ):
+            cache = MatchCache(query)
 
-    def fit_at(guess: float | None, bar: int, around_peak: bool = True) -> TwoViewFit | None:
-        asked = replace(config, min_inliers=max(config.min_inliers, bar), around_peak=around_peak)
-        return fit_two_view(query, known, asked, guess, cache=cache)
+        def fit_at(guess: float | None, bar: int, around_peak: bool = True) -> TwoViewFit | None:
+            asked = replace(
+                config, min_inliers=max(config.min_inliers, bar), around_peak=around_peak
+            )
+            return fit_two_view(query, known, asked, guess, cache=cache)
 
-    def beats(rotation: float, best: TwoViewFit) -> TwoViewFit | None:
-        # On as many of the known keypoints as the fit at hand matched: counts of
-        # the same stages compare; the rival does not stop early on its own.
-        limit = 0 if best.stages is None else best.stages
-        asked = replace(
-            config,
-            min_inliers=max(config.min_inliers, best.inliers + 1),
-            around_peak=False,
-            accept_share=0.0,
-            stage_limit=limit,
-        )
-        return fit_two_view(query, known, asked, rotation, cache=cache)
+        def beats(rotation: float, best: TwoViewFit) -> TwoViewFit | None:
+            # On as many of the known keypoints as the fit at hand matched: counts of
+            # the same stages compare; the rival does not stop early on its own.
+            limit = 0 if best.stages is None else best.stages
+            asked = replace(
+                config,
+                min_inliers=max(config.min_inliers, best.inliers + 1),
+                around_peak=False,
+                accept_share=0.0,
+                stage_limit=limit,
+            )
+            return fit_two_view(query, known, asked, rotation, cache=cache)
 
-    first = fit_at(guess_rad, needed)
-    if rotations is None:
-        if first is None and any_rotation:
-            first = fit_at(None, needed)
-        return first
-    best = first if first is not None and agrees(first) else None
-    for rotation in rotations:
-        if best is not None and _apart(best.rotation_rad, rotation) <= tolerance_rad:
-            continue  # the fit at hand is this rotation's
-        if first is None and _apart(guess_rad, rotation) <= config.search_rad / 2.0:
-            continue  # the failed fit searched here already
-        other = fit_at(rotation, needed, False) if best is None else beats(rotation, best)
-        if other is None or not agrees(other):
-            continue
-        # Only another turn replaces a fit (its matches, found in other images, may
-        # fit the same turn with more keypoints: that is no news).
-        if best is None or _apart(other.rotation_rad, best.rotation_rad) > tolerance_rad:
-            best = other
-    return best if best is not None else first
+        first = fit_at(guess_rad, needed)
+        if rotations is None:
+            if first is None and any_rotation:
+                first = fit_at(None, needed)
+            return first
+        best = first if first is not None and agrees(first) else None
+        for rotation in rotations:
+            if best is not None and _apart(best.rotation_rad, rotation) <= tolerance_rad:
+                continue  # the fit at hand is this rotation's
+            if first is None and _apart(guess_rad, rotation) <= config.search_rad / 2.0:
+                continue  # the failed fit searched here already
+            other = fit_at(rotation, needed, False) if best is None else beats(rotation, best)
+            if other is None or not agrees(other):
+                continue
+            # Only another turn replaces a fit (its matches, found in other images, may
+            # fit the same turn with more keypoints: that is no news).
+            if best is None or _apart(other.rotation_rad, best.rotation_rad) > tolerance_rad:
+                best = other
+        return best if best is not None else first
+
+    best = fit_pair(query, known, cache)
+    pair = None if closer is None or (best is not None and best.inliers >= needed) else closer()
+    return best if pair is None else fit_pair(pair[0], pair[1], None)
