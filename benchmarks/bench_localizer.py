@@ -138,7 +138,8 @@ def _distractor_localizer(
 
 def _kept_per_junction_kib(localizer: Localizer) -> float:
     """What each known junction keeps: the matcher's arrays and compact images, and
-    its keypoints (KiB)."""
+    its keypoints (KiB). The distractors are built without the closer look's
+    keypoints (``localizer.closer``), which ``bench_closer_look.py`` measures."""
     held = localizer._matcher.kept_bytes() + sum(f.nbytes for f in localizer._features)
     return held / localizer.known_count / 1024
 
