@@ -18,6 +18,7 @@ from pipemap.localizer.ports import (
     port_assignments,
     port_rotations,
 )
+from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
 from pipemap.localizer.twoview import SweepFeatures, stored_features
 from tests.conftest import PaperSet
@@ -251,6 +252,52 @@ def test_a_junction_no_fit_can_make_a_branch_is_not_fitted_for_the_branch(
     _, b_new = _into_the_twin_t_by_a_pipe_taken(paper_sets, fitted, x_m=1.0)
     assert b_new.node == 2 and b_new.hypotheses == 2 and b_new.deferred == (4,)
     assert fitted == [("_verified", 0), ("_verified", 2), ("_repeats", 0)]
+
+
+class _LookAlikes:
+    """The parts of a localizer :func:`branching.alike_branches` reads, for a visit
+    recognised as one junction with look-alikes: every fit asked is recorded (and
+    fails, so no branch is made), and the arrival rule rejects ``conflicted`` at
+    every turn a fit could agree with."""
+
+    def __init__(self, conflicted: set[int], port_check: bool = True) -> None:
+        self.config = LocalizerConfig(port_check=port_check)
+        self.fitted: list[int] = []
+        self._hypotheses = self
+        self._conflicted = conflicted
+
+    def arrival_conflict_at_every_turn(self, node: int, exits: object, tolerance: float) -> bool:
+        return node in self._conflicted
+
+    def _fit(self, node: int, *args: object) -> None:
+        self.fitted.append(node)
+
+
+@pytest.mark.parametrize(
+    ("conflicted", "port_check", "fitted"),
+    [({3}, True, [5]), (set(), True, [3, 5]), ({3, 5}, True, []), ({3}, False, [3, 5])],
+    ids=["one-conflicted", "none-conflicted", "both-conflicted", "port-check-off"],
+)
+def test_a_look_alike_no_fit_can_make_a_branch_is_not_fitted(
+    conflicted: set[int], port_check: bool, fitted: list[int]
+) -> None:
+    # A look-alike whose pipe behind the robot leads elsewhere at every turn a fit
+    # could agree with would be passed over by the arrival rule whatever its fit:
+    # alike_branches does not ask it. Without the port check a fit whose ports
+    # disagree is not passed over, so every look-alike is fitted.
+    loc = _LookAlikes(conflicted, port_check)
+    matched = [SetMatch(0.5, 0, 0.0, 0.0, 0.0)] * 6
+    branches = branching.alike_branches(
+        loc,  # type: ignore[arg-type]
+        (3, 5),
+        None,  # type: ignore[arg-type]
+        matched,
+        0.0,
+        T,
+        0,
+        {},
+    )
+    assert branches == [] and loc.fitted == fitted
 
 
 @pytest.mark.parametrize(
