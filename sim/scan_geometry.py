@@ -34,6 +34,9 @@ SIDE_NOMINAL_M = HALF_WIDTH_M / math.sin(math.radians(40.0))
 
 _CORNER_REACH_M = 0.16
 _STRAIGHT_DEG = 10.0
+#: The clearances within which circles count as the widest, tried in turn (see
+#: :func:`axes_crossing`): the scan's tolerance first.
+_ARM_TOLERANCES_M = (0.003, 0.006, 0.009)
 
 
 def seen(samples: list[tuple[float, float]], forward_m: float, offsets: np.ndarray) -> np.ndarray:
@@ -84,7 +87,21 @@ def axes_crossing(
     centres = here + np.stack([gx.ravel(), gy.ravel()], 1)
     centres = centres[seen(samples, forward_m, centres - here)]
     clearance, _ = cKDTree(walls).query(centres)
-    widest = centres[clearance >= clearance.max() - 0.003]
+    normals = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    # The widest circles within the scan's tolerance; where those all lie on one arm
+    # (the apex of a shallow corner is wider by ``1/cos(turn/2)``, and the robot may
+    # stand far up the other arm), the tolerance grows until both arms hold some.
+    for tolerance_m in _ARM_TOLERANCES_M:
+        offsets = _arm_offsets(centres[clearance >= clearance.max() - tolerance_m], guess, u)
+        if offsets is not None:
+            crossing: np.ndarray = np.linalg.solve(normals, offsets)
+            return crossing
+    return None
+
+
+def _arm_offsets(widest: np.ndarray, guess: np.ndarray, u: np.ndarray) -> np.ndarray | None:
+    """Each arm's axis, as its points' mean offset across the arm's direction ``u[k]``;
+    ``None`` when an arm has fewer than 3 of the ``widest`` points."""
     normals = np.stack([-u[:, 1], u[:, 0]], axis=1)
     across = widest @ normals.T  # (P, 2): each point's offset across either arm
     # First guess of the arms: the direction each point lies in from the guess.
@@ -97,8 +114,7 @@ def axes_crossing(
             offsets[k] = float(np.mean(across[arm == k, k]))
         # Then each point goes to the axis it lies nearer to, and the axes are refitted.
         arm = np.argmin(np.abs(across - offsets), axis=1)
-    crossing: np.ndarray = np.linalg.solve(normals, offsets)
-    return crossing
+    return offsets
 
 
 def opening_headings(

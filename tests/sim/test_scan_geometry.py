@@ -56,6 +56,28 @@ def test_shallow_corner_centre_is_where_the_axes_cross(headings: tuple[float, fl
     assert axes_crossing(samples, forward, walls, up, up, openings, 25.0) is None
 
 
+@pytest.mark.parametrize(
+    ("headings", "up_m", "within_m"),
+    [((50.0, -87.0), 0.04, 0.01), ((50.0, -87.0), 0.12, 0.01), ((0.0, 153.0), 0.15, 0.08)],
+)
+def test_a_corner_whose_widest_circles_lie_on_one_arm_is_still_crossed(
+    headings: tuple[float, float], up_m: float, within_m: float
+) -> None:
+    # Within the scan's 3 mm the widest circles here lie all on one arm (the apex of
+    # a 27 degree corner is 2.8 mm wider than the arms), so no axis could be fitted
+    # to the other and the widest circle alone set the robot 15 cm up the pipe it
+    # came by (random:12 seed 23, visit 16). The tolerance grows until both arms
+    # hold circles.
+    forward = 0.06
+    direction = np.array([math.cos(math.radians(headings[0])), math.sin(math.radians(headings[0]))])
+    up = up_m * direction
+    samples, walls = _corner_scan(headings, (float(up[0]), float(up[1])), forward)
+    openings = [math.radians(h) for h in headings]
+    centre = axes_crossing(samples, forward, walls, up, up, openings, 70.0)
+    assert centre is not None
+    assert float(np.linalg.norm(centre)) < within_m
+
+
 @pytest.mark.parametrize("headings", [(0.0, 90.0), (0.0, 180.0)])
 def test_sharp_corners_and_straight_pipes_are_left_to_the_widest_circle(
     headings: tuple[float, float],
