@@ -93,10 +93,13 @@ def _substitution(marker: str, where: str) -> tuple[str, str]:
 def commands(script: str) -> list[tuple[str, ...]]:
     """A script's commands, one a line, each as the words the shell splits it into
     (comments and blank lines dropped, a line ending in a backslash joined to the
-    next)."""
+    next; a line whose quotes close on another, as its text alone)."""
     found = []
     for line in script.replace("\\\n", " ").splitlines():
-        words = tuple(shlex.split(line, comments=True))
+        try:
+            words = tuple(shlex.split(line, comments=True))
+        except ValueError:
+            words = (line.strip(),)
         if words:
             found.append(words)
     return found
@@ -299,6 +302,7 @@ def test_a_covered_block_names_its_twins_and_does_not_run() -> None:
         ("bench", "--count", "1"),
         ("bench", "--count", "1", "--no-probes"),
     ]
+    assert commands("echo 'two\nlines'\n") == [("echo 'two",), ("lines'",)]
     assert twins(covered, [covered, first, second]) == [first, second]
     assert _RUN_PAGES and all(b.runs for _, unit in _units() for b in unit)
 
