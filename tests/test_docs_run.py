@@ -17,6 +17,13 @@ HTML comments on the lines just above a block's fence steer it:
   reported skipped with the reason. For blocks that install pipemap (CI runs the Quick
   start in fresh virtual environments), want several machines, a display, or stop
   processes that are not theirs.
+- ``<!-- doc-test: covered -->`` does not run the block on its own, because another
+  block of the page that runs runs each of its commands: every command of the block
+  (its substitutions made, compared word for word as the shell splits them, comments
+  aside) is a command of such a block, or is one but for a ``--keep DIR`` that the
+  other adds (the benchmarks' option to keep their logs). A page whose runs repeat
+  at doc-test settings runs each once. The page is an error if a command of a
+  covered block has no such twin; the block's own test checks its twins run.
 
 Blocks that are not commands (a synopsis, an output) are fenced ``text``, not ``sh``.
 """
@@ -25,6 +32,7 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -51,6 +59,12 @@ class Block:
     line: int
     script: str
     skip: str | None
+    covered: bool = False
+
+    @property
+    def runs(self) -> bool:
+        """Whether the block runs as a unit's part (not skipped, not covered)."""
+        return self.skip is None and not self.covered
 
     @property
     def name(self) -> str:
@@ -76,17 +90,67 @@ def _substitution(marker: str, where: str) -> tuple[str, str]:
     return old.strip(), new.strip()
 
 
+def commands(script: str) -> list[tuple[str, ...]]:
+    """A script's commands, one a line, each as the words the shell splits it into
+    (comments and blank lines dropped, a line ending in a backslash joined to the
+    next; a line whose quotes close on another, as its text alone)."""
+    found = []
+    for line in script.replace("\\\n", " ").splitlines():
+        try:
+            words = tuple(shlex.split(line, comments=True))
+        except ValueError:
+            words = (line.strip(),)
+        if words:
+            found.append(words)
+    return found
+
+
+def _less_keep(words: tuple[str, ...]) -> tuple[str, ...]:
+    """A command without its ``--keep DIR`` (itself, if it has none)."""
+    if "--keep" not in words[:-1]:
+        return words
+    at = words.index("--keep")
+    return words[:at] + words[at + 2 :]
+
+
+def twins(block: Block, blocks: list[Block]) -> list[Block]:
+    """The blocks among ``blocks`` that run the commands of ``block``, one for each of
+    its commands, in order. ``ValueError`` names a command that no block runs."""
+    found = []
+    for command in commands(block.script):
+        twin = next(
+            (
+                other
+                for other in blocks
+                if other is not block
+                and other.runs
+                and any(
+                    command in (theirs, _less_keep(theirs)) for theirs in commands(other.script)
+                )
+            ),
+            None,
+        )
+        if twin is None:
+            raise ValueError(
+                f"{block.page.name}:{block.line}: covered, but no block of the page that runs has "
+                f"the command {shlex.join(command)!r}"
+            )
+        found.append(twin)
+    return found
+
+
 def parse_blocks(page: Path, text: str) -> list[Block]:
     """Every ``sh`` block of a page, its markers applied. A marker that is neither a
-    skip nor a substitution, or a substitution whose OLD is not in the block, is an
-    error: the page and its markers must not drift apart either."""
+    skip, a substitution nor ``covered``, a substitution whose OLD is not in the block,
+    or a covered block with a command no other block runs, is an error: the page and
+    its markers must not drift apart either."""
     blocks: list[Block] = []
     for fence in FENCE.finditer(text):
         if fence.group(1) != "sh":
             continue
         line = text.count("\n", 0, fence.start()) + 1
         where = f"{page.name}:{line}"
-        script, skip = fence.group(2), None
+        script, skip, covered = fence.group(2), None, False
         for marker in _markers(text, fence.start()):
             if marker.startswith("skip"):
                 reason = re.fullmatch(r"skip\s*\((.+)\)", marker)
@@ -98,9 +162,14 @@ def parse_blocks(page: Path, text: str) -> list[Block]:
                 if old not in script:
                     raise ValueError(f"{where}: {old!r} is not in the block to substitute")
                 script = script.replace(old, new)
+            elif marker == "covered":
+                covered = True
             else:
                 raise ValueError(f"{where}: unknown doc-test marker {marker!r}")
-        blocks.append(Block(page, line, script, skip))
+        blocks.append(Block(page, line, script, skip, covered))
+    for block in blocks:
+        if block.covered:
+            twins(block, blocks)
     return blocks
 
 
@@ -146,7 +215,7 @@ def _run_page(blocks: list[Block], tmp_path: Path) -> None:
 
 
 _BLOCKS = _all_blocks()
-_RUN_PAGES = sorted({b.page for b in _BLOCKS if b.skip is None})
+_RUN_PAGES = sorted({b.page for b in _BLOCKS if b.runs})
 
 
 #: Pages whose blocks read nothing an earlier block wrote: each block runs in a folder
@@ -163,7 +232,7 @@ def _units() -> list[tuple[str, list[Block]]]:
     place among the page's blocks that run, from 1)."""
     units = []
     for page in _RUN_PAGES:
-        blocks = [b for b in _BLOCKS if b.page == page and b.skip is None]
+        blocks = [b for b in _BLOCKS if b.page == page and b.runs]
         stem = re.sub(r"\W", "_", page.relative_to(ROOT).with_suffix("").as_posix())
         if page.relative_to(ROOT).as_posix() in BLOCKS_APART:
             units += [(f"TestPage_{stem}_{i}", [b]) for i, b in enumerate(blocks, 1)]
@@ -193,6 +262,17 @@ def test_a_skipped_block_says_why(block: Block) -> None:
     pytest.skip(block.skip)
 
 
+@pytest.mark.parametrize("block", [b for b in _BLOCKS if b.covered], ids=lambda b: b.name)
+def test_a_covered_block_runs_in_its_twins(block: Block) -> None:
+    """Each command of a covered block is a command of a block that one of the
+    units above runs."""
+    page = [b for b in _BLOCKS if b.page == block.page]
+    running = [b for _, unit in _units() for b in unit]
+    found = twins(block, page)
+    assert len(found) == len(commands(block.script)) > 0
+    assert all(any(twin is b for b in running) for twin in found)
+
+
 # ------------------------------------------------------------- the runner itself
 
 
@@ -207,6 +287,40 @@ def test_markers_substitute_and_skip() -> None:
     assert first.script == "pipemap record --resolution 32\n" and first.skip is None
     assert first.line == 4
     assert second.skip == "needs a cluster" and second.script == "ray start\n"
+
+
+def test_a_covered_block_names_its_twins_and_does_not_run() -> None:
+    text = (
+        "<!-- doc-test: substitute --count 8 => --count 1 -->\n<!-- doc-test: covered -->\n"
+        "```sh\nbench --count 8   # all eight\nbench --count 8 \\\n  --no-probes\n```\n"
+        "```sh\nbench --count 1 --keep on\n```\n"
+        "```sh\nbench --count 1 --no-probes\nscore\n```\n"
+    )
+    covered, first, second = parse_blocks(Path("page.md"), text)
+    assert covered.covered and not covered.runs and first.runs and second.runs
+    assert commands(covered.script) == [
+        ("bench", "--count", "1"),
+        ("bench", "--count", "1", "--no-probes"),
+    ]
+    assert commands("echo 'two\nlines'\n") == [("echo 'two",), ("lines'",)]
+    assert twins(covered, [covered, first, second]) == [first, second]
+    assert _RUN_PAGES and all(b.runs for _, unit in _units() for b in unit)
+
+
+@pytest.mark.parametrize(
+    "others",
+    [
+        "```sh\nbench --count 1 --fast\n```\n",  # another command
+        "```sh\nbench --count 1 --out on\n```\n",  # only --keep may differ
+        "<!-- doc-test: skip (x) -->\n```sh\nbench --count 1\n```\n",  # does not run
+        "<!-- doc-test: covered -->\n```sh\nbench --count 1\n```\n",  # nor does this
+        "```text\nbench --count 1\n```\n",  # not a command
+    ],
+)
+def test_a_covered_block_without_a_running_twin_is_an_error(others: str) -> None:
+    text = "<!-- doc-test: covered -->\n```sh\nbench --count 1\n```\n" + others
+    with pytest.raises(ValueError, match="covered"):
+        parse_blocks(Path("page.md"), text)
 
 
 def test_a_marker_apart_from_its_block_does_not_steer_it() -> None:
