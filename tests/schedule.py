@@ -33,10 +33,10 @@ from xdist.scheduler import LoadScopeScheduling
 #: that start Ray by their wall time (Ray's daemons are not the test's children, so
 #: its CPU count misses them).
 SECONDS: dict[str, float] = {
-    "tests/recorder/test_record_command.py": 508.0,
-    "tests/sim/test_controller.py": 431.0,
+    "tests/recorder/test_record_command.py": 435.0,
+    "tests/sim/test_controller.py": 360.0,
     "tests/test_docs_run.py::TestPage_docs_simulator_2": 315.0,
-    "tests/replay/test_view.py": 269.0,
+    "tests/replay/test_view.py": 166.0,
     "tests/replay/test_replay.py": 195.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_3": 227.0,
     "tests/test_experiment.py": 190.0,
@@ -46,7 +46,7 @@ SECONDS: dict[str, float] = {
     "tests/recorder/test_explore_runs.py": 167.0,
     "tests/test_docs_run.py::TestPage_docs_performance": 156.0,
     "tests/test_docs_run.py::TestPage_docs_ros2": 136.0,
-    "tests/recorder/test_truth_poisoning.py": 89.0,
+    "tests/recorder/test_truth_poisoning.py": 51.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_1": 94.0,
     "tests/test_docs_run.py::TestPage_docs_stuck": 79.0,
     "tests/ros2/test_import.py": 77.0,
