@@ -43,7 +43,7 @@ SECONDS: dict[str, float] = {
     "tests/batch/test_batch_ray.py": 190.0,
     "tests/test_faults.py": 190.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_2": 178.0,
-    "tests/recorder/test_explore_runs.py": 167.0,
+    "tests/recorder/test_explore_runs.py": 161.0,
     "tests/test_docs_run.py::TestPage_docs_performance": 156.0,
     "tests/test_docs_run.py::TestPage_docs_ros2": 136.0,
     "tests/recorder/test_truth_poisoning.py": 51.0,
