@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from pipemap.recorder import LogWriter, Topic, read_log, schemas
 from pipemap.recorder.messages import image_message, pose_message
@@ -28,6 +29,15 @@ def record(output: Path, *extra: str) -> subprocess.CompletedProcess[str]:
         text=True,
         timeout=600,
     )
+
+
+def recorded(folders: pytest.TempPathFactory, name: str, *extra: str) -> Path:
+    """The small run with ``extra`` settings, recorded (it must finish) into a new
+    temporary folder ``name``: for a module's fixtures."""
+    path = folders.mktemp(name) / "run.mcap"
+    done = record(path, *extra)
+    assert done.returncode == 0, done.stderr
+    return path
 
 
 def sweeps_started(log: Path) -> int:

@@ -36,9 +36,9 @@ from xdist.scheduler import LoadScopeScheduling
 #: are their CPU seconds alone times 3.38: docs_simulator_2's 315 s against its 93.3 s
 #: of CPU, measured when that unit still held the page's first bench_explore block.
 SECONDS: dict[str, float] = {
-    "tests/recorder/test_record_command.py": 508.0,
-    "tests/sim/test_controller.py": 431.0,
-    "tests/replay/test_view.py": 269.0,
+    "tests/recorder/test_record_command.py": 435.0,
+    "tests/sim/test_controller.py": 360.0,
+    "tests/replay/test_view.py": 166.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_5": 259.0,
     "tests/replay/test_replay.py": 195.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_3": 227.0,
@@ -46,7 +46,7 @@ SECONDS: dict[str, float] = {
     "tests/batch/test_batch_ray.py": 190.0,
     "tests/test_faults.py": 190.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_2": 178.0,
-    "tests/recorder/test_explore_runs.py": 167.0,
+    "tests/recorder/test_explore_runs.py": 161.0,
     "tests/test_docs_run.py::TestPage_docs_simulator_3": 167.0,
     "tests/test_docs_run.py::TestPage_docs_simulator_2": 160.0,
     "tests/test_docs_run.py::TestPage_docs_performance": 156.0,
@@ -54,7 +54,7 @@ SECONDS: dict[str, float] = {
     "tests/test_docs_run.py::TestPage_docs_lookalike_8": 154.0,
     "tests/test_docs_run.py::TestPage_docs_ros2": 136.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_9": 109.0,
-    "tests/recorder/test_truth_poisoning.py": 89.0,
+    "tests/recorder/test_truth_poisoning.py": 51.0,
     "tests/test_docs_run.py::TestPage_docs_lookalike_1": 94.0,
     "tests/test_docs_run.py::TestPage_docs_stuck": 79.0,
     "tests/ros2/test_import.py": 77.0,

@@ -115,8 +115,9 @@ def test_replay_makes_the_online_decisions_and_the_explorer_its_choices(
 def test_a_false_new_node_every_visit_ends_the_run(tmp_path: Path) -> None:
     # At 32 px the threshold decides; at 1.0 no revisit reaches it. Every revisit
     # makes a new junction with pipes to explore: without a stop, this never ends.
+    # tree:3 (S n1 n2) shows it at its first revisit, n1 on the way back.
     path = tmp_path / "new.mcap"
-    result = _record(path, "paper", 32, threshold=1.0)
+    result = _record(path, "tree:3", 32, threshold=1.0)
     assert result.status == "map inconsistent" and not result.ok  # type: ignore[attr-defined]
     events = _events(path)
     assert events[-1] == "stopped: map inconsistent"

@@ -20,7 +20,7 @@ import pytest
 from pipemap.localizer import LocalizerConfig
 from pipemap.recorder import Topic, read_log, schemas
 from pipemap.replay import FileSource, replay
-from tests.logs import record
+from tests.logs import record, recorded
 
 THRESHOLD = 0.6
 #: The tests' small run (``tests.logs.SMALL_RUN``: paper, 64 px, seed 3) at this threshold.
@@ -29,10 +29,7 @@ WEAK = ("--threshold", str(THRESHOLD))
 
 @pytest.fixture(scope="module")
 def probing(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("probing") / "run.mcap"
-    done = record(path, *WEAK)
-    assert done.returncode == 0, done.stderr
-    return path
+    return recorded(tmp_path_factory, "probing", *WEAK)
 
 
 def _score_notes(path: Path) -> str:

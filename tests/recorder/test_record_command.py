@@ -24,7 +24,7 @@ from pipemap.recorder import (
     read_log,
     schemas,
 )
-from tests.logs import SMALL_RUN, record
+from tests.logs import SMALL_RUN, record, recorded
 
 
 def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
@@ -33,11 +33,23 @@ def pipemap(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-def test_the_same_seed_gives_the_same_bytes(recorded_run: Path, tmp_path: Path) -> None:
+#: A run of three junctions under even light (the lamp off): recorded once for the
+#: module, read by the determinism and the lighting tests. (The shared paper run's
+#: determinism is checked against a recording made in one process, in other threads,
+#: by tests/recorder/test_inline.py.)
+EVEN_TREE = ("--lighting", "even", "--network", "tree:3")
+
+
+@pytest.fixture(scope="module")
+def even_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return recorded(tmp_path_factory, "even", *EVEN_TREE)
+
+
+def test_the_same_seed_gives_the_same_bytes(even_run: Path, tmp_path: Path) -> None:
     again = tmp_path / "again.mcap"
-    done = record(again)
+    done = record(again, *EVEN_TREE)
     assert done.returncode == 0, done.stderr
-    assert again.read_bytes() == recorded_run.read_bytes()
+    assert again.read_bytes() == even_run.read_bytes()
 
 
 def test_a_run_logs_every_stream(recorded_run: Path) -> None:
@@ -361,14 +373,11 @@ def test_record_hands_the_exploration_policy_to_the_run(
 
 
 def test_the_log_records_the_lamp_and_lighting_even_turns_it_off(
-    recorded_run: Path, tmp_path: Path
+    recorded_run: Path, even_run: Path
 ) -> None:
     from pipemap.recorder.metadata import lamp_strength
 
     assert lamp_strength(read_log(recorded_run).metadata[METADATA_RUN]) == 1.0
-    even = tmp_path / "even.mcap"
     # A network of three junctions: the lamp is a setting of the run, not of the network
     # (the small run's paper network was only the larger world to build).
-    done = record(even, "--lighting", "even", "--network", "tree:3")
-    assert done.returncode == 0, done.stderr
-    assert lamp_strength(read_log(even).metadata[METADATA_RUN]) == 0.0
+    assert lamp_strength(read_log(even_run).metadata[METADATA_RUN]) == 0.0

@@ -1,6 +1,8 @@
 """``pipemap view --save``: the recording, read back with rerun's own tools.
 
-The recording is saved once per module from the shared 32 px run and checked with
+The module records one small run once (``pipemap record --network tree:3 --resolution
+64 --view --save``: 5 sweeps, its log and its view), saves its view again with
+``pipemap view`` and checks them with
 ``rerun rrd verify`` / ``rerun rrd compare`` and rerun's chunk reader
 (``rerun.chunk.RrdReader``): every image and pose is there, the high-rate sensor
 streams at 10 a second (every sample with ``--max-rate 0``), on the ``sim_time``
@@ -42,14 +44,44 @@ def view(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+#: The module's run: tree:3 at seed 0 sweeps 5 times (its 3 nodes, 2 of them again on
+#: the way back), 6 images each: the view of a whole run, at a fraction of the cost of
+#: the paper network's (whose log is about three times as long).
+TREE_RUN = ["--network", "tree:3", "--resolution", "64"]
+
+
 @pytest.fixture(scope="module")
-def saved(recorded_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("view") / "run.rrd"
-    done = view(str(recorded_run), "--save", str(path))
+def recorded_and_viewed(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[Path, subprocess.CompletedProcess[str]]:
+    """``pipemap record ... --view --save`` of :data:`TREE_RUN`, once for the module:
+    its log (beside it, the view it saved) and the command's outcome."""
+    log = tmp_path_factory.mktemp("recorded") / "run.mcap"
+    done = subprocess.run(
+        [sys.executable, "-m", "pipemap", "record", *TREE_RUN, "-o", str(log), "--view", "--save"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    return log, done
+
+
+@pytest.fixture(scope="module")
+def run_log(recorded_and_viewed: tuple[Path, subprocess.CompletedProcess[str]]) -> Path:
+    """The module's recorded log (tests only read it)."""
+    log, done = recorded_and_viewed
     assert done.returncode == 0, done.stderr
-    sweeps, visits = sweeps_started(recorded_run), len(replay(FileSource(recorded_run)).visits)
+    return log
+
+
+@pytest.fixture(scope="module")
+def saved(run_log: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("view") / "run.rrd"
+    done = view(str(run_log), "--save", str(path))
+    assert done.returncode == 0, done.stderr
+    sweeps, visits = sweeps_started(run_log), len(replay(FileSource(run_log)).visits)
     assert sweeps == visits > 0  # a run without probe sweeps: one sweep a visit
-    expected = f"viewed {recorded_run}: {sweeps} sweeps, {6 * sweeps} images, {visits} visits"
+    expected = f"viewed {run_log}: {sweeps} sweeps, {6 * sweeps} images, {visits} visits"
     assert done.stdout.startswith(expected)
     return path
 
@@ -70,10 +102,10 @@ def chunks(saved: Path) -> dict[str, list[Any]]:
 
 
 @pytest.fixture(scope="module")
-def full(recorded_run: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+def full(run_log: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The run viewed with every message of every stream (``--max-rate 0``)."""
     path = tmp_path_factory.mktemp("view") / "full.rrd"
-    done = view(str(recorded_run), "--save", str(path), "--max-rate", "0")
+    done = view(str(run_log), "--save", str(path), "--max-rate", "0")
     assert done.returncode == 0, done.stderr
     return path
 
@@ -103,10 +135,10 @@ def test_rerun_verifies_the_recording(saved: Path) -> None:
     assert done.returncode == 0, done.stderr
 
 
-def test_every_image_pose_and_sample_is_there(recorded_run: Path, full: Path) -> None:
+def test_every_image_pose_and_sample_is_there(run_log: Path, full: Path) -> None:
     chunks = read_chunks(full)
-    counts = read_log(recorded_run).counts
-    images = 6 * sweeps_started(recorded_run)
+    counts = read_log(run_log).counts
+    images = 6 * sweeps_started(run_log)
     assert rows(chunks, "/camera/image", "EncodedImage:blob") == counts[Topic.IMAGE] == images
     assert rows(chunks, "/world/robot", "Transform3D:translation") == counts[Topic.TRUE_POSE]
     series = {
@@ -129,13 +161,11 @@ def test_every_image_pose_and_sample_is_there(recorded_run: Path, full: Path) ->
     assert sum(rows(chunks, e, "LineStrips3D:strips") for e in trail) > 100
     static = [c for c in chunks["/world/network/nodes"] if c.is_static]
     labels = static[0].to_record_batch().column("Points3D:labels").to_pylist()[0]
-    assert sorted(labels) == ["A", "B", "C", "D", "E", "F", "S"]
+    assert sorted(labels) == ["S", "n1", "n2"]
 
 
-def test_range_rays_are_as_long_as_the_ranges(
-    recorded_run: Path, chunks: dict[str, list[Any]]
-) -> None:
-    logged = [m for m in read_log(recorded_run).messages if m.topic == Topic.RANGES]
+def test_range_rays_are_as_long_as_the_ranges(run_log: Path, chunks: dict[str, list[Any]]) -> None:
+    logged = [m for m in read_log(run_log).messages if m.topic == Topic.RANGES]
     first = Ranges.FromString(logged[0].data)
     rays = column(chunks, "/world/robot/tof", "Arrows3D:vectors")[0]
     lengths = [math.hypot(*ray) for ray in rays]
@@ -147,9 +177,9 @@ def test_range_rays_are_as_long_as_the_ranges(
 
 
 def test_images_are_the_logged_pngs_at_their_log_times(
-    recorded_run: Path, chunks: dict[str, list[Any]]
+    run_log: Path, chunks: dict[str, list[Any]]
 ) -> None:
-    logged = [m for m in read_log(recorded_run).messages if m.topic == Topic.IMAGE]
+    logged = [m for m in read_log(run_log).messages if m.topic == Topic.IMAGE]
     first = CompressedImage.FromString(logged[0].data).data
     blobs = column(chunks, "/camera/image", "EncodedImage:blob")
     assert bytes(blobs[0][0]) == first
@@ -189,30 +219,28 @@ def test_sim_time_is_the_only_timeline(chunks: dict[str, list[Any]]) -> None:
     assert timed and all(c.timeline_names == ["sim_time"] for c in timed)
 
 
-def test_two_saves_of_one_log_compare_equal(
-    recorded_run: Path, saved: Path, tmp_path: Path
-) -> None:
+def test_two_saves_of_one_log_compare_equal(run_log: Path, saved: Path, tmp_path: Path) -> None:
     # The same rows: rerun's batcher groups rows into chunks by its own clock, so on a
     # loaded machine two saves of one log hold the rows in other chunks, which
     # `rerun rrd compare` (chunk by chunk, even --unordered) reports as a difference.
     again = tmp_path / "again.rrd"
-    done = view(str(recorded_run), "--save", str(again))
+    done = view(str(run_log), "--save", str(again))
     assert done.returncode == 0, done.stderr
     assert recorded_rows(saved) == recorded_rows(again)
 
 
 def test_the_command_replaying_in_a_child_process_saves_what_one_process_saves(
-    recorded_run: Path, saved: Path, tmp_path: Path
+    run_log: Path, saved: Path, tmp_path: Path
 ) -> None:
     # `pipemap view` replays in a forked child while it reads and logs the streams
     # itself, as they come from the file.
     alone = tmp_path / "alone.rrd"
-    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), alone)
+    save_view(StreamSource(run_log), replay(FileSource(run_log)), alone)
     assert recorded_rows(saved) == recorded_rows(alone)
 
 
 def test_the_command_without_a_child_process_saves_the_same(
-    recorded_run: Path,
+    run_log: Path,
     saved: Path,
     tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
@@ -221,7 +249,7 @@ def test_the_command_without_a_child_process_saves_the_same(
     # Where the system cannot fork, one process does it all.
     monkeypatch.setattr(viewing, "_can_fork", lambda: False)
     alone = tmp_path / "alone.rrd"
-    status, out, err = run(["view", str(recorded_run), "--save", str(alone)], capfd)
+    status, out, err = run(["view", str(run_log), "--save", str(alone)], capfd)
     assert status == 0, err
     assert f"written to {alone}" in out
     assert recorded_rows(saved) == recorded_rows(alone)
@@ -264,7 +292,7 @@ def run(argv: list[str], capfd: pytest.CaptureFixture[str]) -> tuple[int, str, s
 def test_bad_input_is_one_line_and_exit_2(
     case: str,
     expected: str,
-    recorded_run: Path,
+    run_log: Path,
     tmp_path: Path,
     capfd: pytest.CaptureFixture[str],
     monkeypatch: pytest.MonkeyPatch,
@@ -274,7 +302,7 @@ def test_bad_input_is_one_line_and_exit_2(
     not_mcap.write_text("not a log\n")
     existing = tmp_path / "old.rrd"
     existing.write_bytes(b"keep me")
-    log, out = str(recorded_run), str(tmp_path / "new.rrd")
+    log, out = str(run_log), str(tmp_path / "new.rrd")
     argv = {
         "missing": [str(tmp_path / "nothing.mcap"), "--save", out],
         "not_mcap": [str(not_mcap), "--save", out],
@@ -294,18 +322,13 @@ def test_bad_input_is_one_line_and_exit_2(
 
 
 def test_record_view_save_writes_the_view_beside_the_log(
-    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+    recorded_and_viewed: tuple[Path, subprocess.CompletedProcess[str]],
 ) -> None:
-    log = tmp_path / "run.mcap"
-    status, stdout, stderr = run(
-        ["record", "--network", "tree:3", "--resolution", "64", "-o", str(log), "--view", "--save"],
-        capfd,
-    )
-    assert status == 0, stderr
-    rrd = tmp_path / "run.rrd"
-    last = stdout.splitlines()[-1]
-    # tree:3's run at seed 0 sweeps 5 times (its 3 nodes, 2 of them again on the way
-    # back), 6 images each: the view of a run, at a fraction of paper's recording cost.
+    log, done = recorded_and_viewed
+    assert done.returncode == 0, done.stderr
+    rrd = log.with_suffix(".rrd")
+    last = done.stdout.splitlines()[-1]
+    # tree:3's run at seed 0 sweeps 5 times, 6 images each (see TREE_RUN).
     assert last.startswith(f"viewed {log}: 5 sweeps, 30 images, 5 visits, ")
     assert last.endswith(f" junctions, written to {rrd}")
     assert rerun_cli("rrd", "verify", str(rrd)).returncode == 0
@@ -376,10 +399,11 @@ def recorded_rows(path: Path) -> dict[str, list[str]]:
 
 @pytest.mark.parametrize("window", [997, 10**9])
 def test_a_log_viewed_a_window_at_a_time_is_the_whole_log_viewed(
-    recorded_run: Path, full: Path, tmp_path: Path, window: int, monkeypatch: pytest.MonkeyPatch
+    run_log: Path, full: Path, tmp_path: Path, window: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``pipemap view`` reads and logs a log a window of messages at a time (the
-    run's log: about 80 000 messages, two windows by default): in windows of 997
+    module's log: about 34 000 messages, one window of 50 000 by default; the paper
+    network's run, about 80 000, two): in windows of 997
     (each carrying the trajectory, the styles logged and the controller's state to
     the next) or in one, the same rows. (``rerun rrd compare`` compares chunks,
     and the windows cut the images and series into other chunks.)"""
@@ -393,26 +417,26 @@ def test_a_log_viewed_a_window_at_a_time_is_the_whole_log_viewed(
 
     monkeypatch.setattr(view_module, "log_robot", counting)
     again = tmp_path / f"window-{window}.rrd"
-    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), again, 0.0)
+    save_view(StreamSource(run_log), replay(FileSource(run_log)), again, 0.0)
     assert recorded_rows(again) == recorded_rows(full)
-    viewed = sum(read_log(recorded_run).counts.values())
+    viewed = sum(read_log(run_log).counts.values())
     assert len(windows) == -(-viewed // window)  # a window of messages at a time
     # A style is logged once, not once a window.
     body = [c for c in read_chunks(again)["/world/robot/body"] if c.is_static]
     assert sum(c.num_rows for c in body) == 1
 
 
-def test_every_source_gives_the_log_in_file_order(recorded_run: Path) -> None:
+def test_every_source_gives_the_log_in_file_order(run_log: Path) -> None:
     """A view reads any source in the same windows: a file read whole and a file read
     as it goes hand out the same messages in the same (file) order."""
-    whole = list(FileSource(recorded_run).every_message())
+    whole = list(FileSource(run_log).every_message())
     assert len(whole) > 1000
-    assert list(StreamSource(recorded_run).every_message()) == whole
+    assert list(StreamSource(run_log).every_message()) == whole
     assert [m.topic for m in whole] != sorted(m.topic for m in whole)  # not by topic
 
 
 def test_the_command_never_reads_the_log_whole(
-    recorded_run: Path,
+    run_log: Path,
     tmp_path: Path,
     monkeypatch: pytest.MonkeyPatch,
     capfd: pytest.CaptureFixture[str],
@@ -427,7 +451,7 @@ def test_the_command_never_reads_the_log_whole(
     monkeypatch.setattr(source_module, "read_log", whole)
     monkeypatch.setattr(viewing, "_can_fork", lambda: False)
     out = tmp_path / "streamed.rrd"
-    status, _, err = run(["view", str(recorded_run), "--save", str(out)], capfd)
+    status, _, err = run(["view", str(run_log), "--save", str(out)], capfd)
     assert status == 0, err
     assert out.exists()
 
@@ -512,9 +536,9 @@ def test_a_decision_says_when_its_fit_matched_only_the_first_stages() -> None:
     assert line.replace(" of the first 1 stage(s)", "") == whole
 
 
-def first_of_each_slot(recorded_run: Path, topic: str, period_ns: int) -> list[int]:
+def first_of_each_slot(run_log: Path, topic: str, period_ns: int) -> list[int]:
     """Log times of the first message of ``topic`` in each slot of ``period_ns``."""
-    times = sorted(m.log_time_ns for m in read_log(recorded_run).messages if m.topic == topic)
+    times = sorted(m.log_time_ns for m in read_log(run_log).messages if m.topic == topic)
     firsts: dict[int, int] = {}
     for t in times:
         firsts.setdefault(t // period_ns, t)
@@ -522,12 +546,12 @@ def first_of_each_slot(recorded_run: Path, topic: str, period_ns: int) -> list[i
 
 
 def test_the_view_shows_the_high_rate_streams_at_10_hz_by_default(
-    recorded_run: Path, chunks: dict[str, list[Any]]
+    run_log: Path, chunks: dict[str, list[Any]]
 ) -> None:
     """Ranges (20 Hz), IMU (100 Hz) and wheels (50 Hz): the first message of each
     tenth of a second of log time, and nothing else; the other streams are whole."""
     got = chunks
-    counts = read_log(recorded_run).counts
+    counts = read_log(run_log).counts
     streams = {
         "/sensors/tof/range_m": Topic.RANGES,
         "/world/robot/tof": Topic.RANGES,
@@ -536,7 +560,7 @@ def test_the_view_shows_the_high_rate_streams_at_10_hz_by_default(
         "/sensors/wheels/ticks": Topic.WHEELS,
     }
     for entity, topic in streams.items():
-        expected = first_of_each_slot(recorded_run, topic, 100_000_000)
+        expected = first_of_each_slot(run_log, topic, 100_000_000)
         shown = sorted(
             t
             for c in got[entity]
@@ -551,17 +575,17 @@ def test_the_view_shows_the_high_rate_streams_at_10_hz_by_default(
 
 
 def test_a_decimated_view_a_window_at_a_time_is_the_whole_log_decimated(
-    recorded_run: Path, saved: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    run_log: Path, saved: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The slot of the last message shown carries over from one window to the next."""
     monkeypatch.setattr(view_module, "VIEW_WINDOW", 997)
     again = tmp_path / "windows.rrd"
-    save_view(StreamSource(recorded_run), replay(FileSource(recorded_run)), again)
+    save_view(StreamSource(run_log), replay(FileSource(run_log)), again)
     assert recorded_rows(again) == recorded_rows(saved)
 
 
-def test_a_negative_rate_is_refused(recorded_run: Path, tmp_path: Path) -> None:
-    done = view(str(recorded_run), "--save", str(tmp_path / "x.rrd"), "--max-rate", "-1")
+def test_a_negative_rate_is_refused(run_log: Path, tmp_path: Path) -> None:
+    done = view(str(run_log), "--save", str(tmp_path / "x.rrd"), "--max-rate", "-1")
     assert done.returncode == 2
     assert done.stderr.startswith("pipemap: error:") and "--max-rate" in done.stderr
     assert not (tmp_path / "x.rrd").exists()

@@ -162,19 +162,25 @@ def _deposit(network, a: str, b: str, kind, side: float = 1.0):  # type: ignore[
     return Obstacle(a, b, kind, along, right, left, centre, heading)
 
 
+#: The small world of the deposit tests: S - n1 - n2, two pipes of about 1.6 m. Its
+#: tour (S n1 n2 n1 S) drives the pipe n1-n2 both ways, as the paper network's tour
+#: drives A-C, at a fraction of the cost; the deposit sits half-way along n1-n2.
+DEPOSIT_NETWORK = "tree:3"
+
+
 @pytest.mark.parametrize("side", [1.0, -1.0])
 def test_a_passable_deposit_is_got_past_and_the_tour_goes_on(side: float) -> None:
     from pipemap.sim.obstacles import ObstacleKind
 
-    network = build_network("paper")
-    deposit = _deposit(network, "A", "C", ObstacleKind.PASSABLE, side)
+    network = build_network(DEPOSIT_NETWORK)
+    deposit = _deposit(network, "n1", "n2", ObstacleKind.PASSABLE, side)
     with World(network, seed=0, texture_px=32, obstacles=(deposit,)) as world:
         result = autonomous_run(world, TINY, seed=1)
     texts = [t for _, t in result.events]
     assert result.status is RunStatus.FINISHED
     assert any(t.startswith("stall ") for t in texts)
-    # Left of the axis from A: the robot meets it going A to C (try 3, right side
-    # free) and coming back C to A (then on its right: try 2).
+    # The robot meets it going n1 to n2 and coming back n2 to n1 (then on its other
+    # side), and gets past each time.
     assert sum(t.startswith("stall: past it") for t in texts) == 2
     assert not any(t.startswith("pipe blocked") for t in texts)
     planned = [v.node for v in right_hand_tour(network, "S").visits]
@@ -185,8 +191,8 @@ def test_a_blocking_deposit_is_given_up_and_the_run_finishes_without_it() -> Non
     from pipemap.sim.obstacles import ObstacleKind
     from pipemap.sim.stream import NodeDeparture, PipeBlocked
 
-    network = build_network("paper")
-    deposit = _deposit(network, "C", "F", ObstacleKind.BLOCKING)
+    network = build_network(DEPOSIT_NETWORK)
+    deposit = _deposit(network, "n1", "n2", ObstacleKind.BLOCKING)
     records: list[object] = []
     with World(network, seed=0, texture_px=32, obstacles=(deposit,)) as world:
         result = autonomous_run(world, TINY, seed=1, sink=records.append)
@@ -198,7 +204,7 @@ def test_a_blocking_deposit_is_given_up_and_the_run_finishes_without_it() -> Non
     again = [d for d in departures if d.visit_id == blocked[0].visit_id]
     assert len(again) == 2 and again[0].exit_rad == blocked[0].exit_rad
     swept = [s.node for s in result.sweep_truths]
-    assert "F" not in swept and set(swept) == set("SABCDE")
+    assert "n2" not in swept and set(swept) == {"S", "n1"}
     assert swept[-1] == "S"
     assert result.duration_ns < default_time_limit_ns(network)
 
@@ -211,8 +217,8 @@ def test_the_watchdog_ends_a_run_that_cannot_get_past_as_stuck() -> None:
     from pipemap.sim.obstacles import ObstacleKind
     from pipemap.sim.recovery import RecoveryConfig
 
-    network = build_network("paper")
-    deposit = _deposit(network, "C", "F", ObstacleKind.BLOCKING)
+    network = build_network(DEPOSIT_NETWORK)
+    deposit = _deposit(network, "n1", "n2", ObstacleKind.BLOCKING)
     config = ExplorerConfig(stuck_after_ns=5_000_000_000)
     never = RecoveryConfig(stall_ns=10**15)
     with World(network, seed=0, texture_px=32, obstacles=(deposit,)) as world:
@@ -223,20 +229,25 @@ def test_the_watchdog_ends_a_run_that_cannot_get_past_as_stuck() -> None:
     assert result.duration_ns < default_time_limit_ns(network)
 
 
-def test_the_right_hand_rule_finds_its_start_within_the_configured_radius(paper_world) -> None:  # type: ignore[no-untyped-def]
+def test_the_right_hand_rule_finds_its_start_within_the_configured_radius() -> None:
     """The explorer's ``start_radius_m`` and ``drift_per_m`` are the rule's: with both
     at 0 no return is close enough to be the start (dead reckoning is never exact),
     so the robot goes round again until the time limit, where the defaults stop it
-    back at S after 13 sweeps (the tests above). 450 s: the tour and the first sweeps
-    of the second round (14 sweeps at 420 s)."""
-    exact = ExplorerConfig(start_radius_m=0.0, drift_per_m=0.0, time_limit_ns=450 * 10**9)
-    result = autonomous_run(paper_world, TINY, seed=1, config=exact)
-    assert result.status is RunStatus.TIME_LIMIT
-    assert len(result.sweeps) > 13
-    # Either alone is enough: 0.3 m, or 5 mm per metre of the 14 m driven.
-    for alone in (replace(exact, start_radius_m=0.3), replace(exact, drift_per_m=0.005)):
-        result = autonomous_run(paper_world, TINY, seed=1, config=alone)
-        assert result.status is RunStatus.FINISHED and len(result.sweeps) == 13
+    back at S. On ``tree:3`` (S n1 n2 n1 S: 5 sweeps, 157 s, 6.4 m driven at seed 1)
+    the 200 s limit leaves time for the first sweep of a second round."""
+    network = build_network("tree:3")
+    tour = [v.node for v in right_hand_tour(network, "S").visits]
+    assert len(tour) == 5
+    exact = ExplorerConfig(start_radius_m=0.0, drift_per_m=0.0, time_limit_ns=200 * 10**9)
+    with World(network, seed=0, texture_px=32) as world:
+        result = autonomous_run(world, TINY, seed=1, config=exact)
+        assert result.status is RunStatus.TIME_LIMIT
+        assert len(result.sweeps) > len(tour)
+        # Either alone is enough: 0.3 m, or 5 mm per metre of the 6.4 m driven.
+        for alone in (replace(exact, start_radius_m=0.3), replace(exact, drift_per_m=0.005)):
+            result = autonomous_run(world, TINY, seed=1, config=alone)
+            assert result.status is RunStatus.FINISHED
+            assert [s.node for s in result.sweep_truths] == tour
 
 
 def test_the_explorer_bounds_shallow_corners_as_configured(
