@@ -12,7 +12,11 @@ OpenCV threads pinned to one:
    costs in addition;
 2. the decision of the revisit (visit 18) by a localizer that knows the junction and
    expects it (the walk of ``tests/localizer/test_closer_look.py``), with the closer
-   look (it is taken, and fits) and without (the visit is new).
+   look (it is taken, and fits) and without (the visit is new);
+3. the decision of visit 6's sweep by a localizer that knows nothing yet (a new
+   junction), with ``LocalizerConfig.closer_keeps_images`` on (the default: it keeps
+   the images ORB would see and finds no closer-look keypoints) and off (it finds
+   them at once), and what each keeps for the closer look.
 
 CPU time, the quickest of N tries (5 by default), in milliseconds.
 """
@@ -111,6 +115,19 @@ def main() -> int:
             f"revisit, closer look {'on' if closer_look else 'off'}: {ms:.1f} ms, "
             f"{'known' if decision.known else 'new'}"
             f"{'' if fit is None else f', {fit.inliers} inliers'}"
+        )
+    first, first_exits = _sweep(data, 6), tuple(data["exits_6"])
+    for keeps_images in (True, False):
+        fresh = Localizer(LocalizerConfig(lamp=True, closer_keeps_images=keeps_images))
+        ms = _quickest(
+            args.repeat,
+            lambda c: c.localize(first, exits_rad=first_exits),
+            lambda fresh=fresh: copy.deepcopy(fresh),
+        )
+        fresh.localize(first, exits_rad=first_exits)
+        print(
+            f"new junction, closer_keeps_images {'on' if keeps_images else 'off'}: "
+            f"{ms:.1f} ms, {fresh._closer.nbytes / 1024:.1f} KiB kept for the closer look"
         )
     return 0
 

@@ -154,6 +154,7 @@ def _forget_after(localizer: Localizer, count: int, saved: bytes) -> None:
     for key in [k for k in matcher._fine_cache if k >= count]:
         del matcher._fine_cache[key]
     del localizer._features[count:]
+    localizer._closer.forget(count)
     localizer.map = pickle.loads(saved)
 
 

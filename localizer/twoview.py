@@ -356,39 +356,43 @@ def stored_features(image_set: ImageSet, config: TwoViewConfig | None = None) ->
     400 px; 233 and 9 at full size with 800 keypoints an image).
     """
     config = config if config is not None else TwoViewConfig()
+    return detected(*orb_input(image_set, config), config)
+
+
+def orb_input(image_set: ImageSet, config: TwoViewConfig) -> tuple[StoredFeatures, np.ndarray]:
+    """What ORB sees of a sweep (:func:`stored_features`): its :class:`StoredFeatures`
+    with no keypoints yet, and the 8-bit images, ``(N, rows, cols)``, for :func:`detected`."""
     n, h, w = image_set.images.shape
-    kept = image_set.cropped()  # the part the NCC matches (the rest may show the robot)
+    kept = list(image_set.cropped())  # the part the NCC matches (the rest may show the robot)
     factor = detection_factor(w, config)
     if factor > 1:
-        size = (max(w // factor, 8), max(kept.shape[1] // factor, 8))
-        seen = [cv2.resize(np.asarray(im), size, interpolation=cv2.INTER_AREA) for im in kept]
-        per_image, threshold = config.reduced_keypoints_per_image, config.reduced_fast_threshold
-    else:
-        seen = list(kept)
-        per_image, threshold = config.keypoints_per_image, config.fast_threshold
-    orb = _orb(per_image, w // factor, threshold)
-    points: list[np.ndarray] = [np.zeros((0, 2), np.float32)]
-    per_image = np.zeros(n, dtype=np.int32)
-    descriptors: list[np.ndarray] = [np.zeros((0, 32), np.uint8)]
-    for j in range(n):
-        keypoints, desc = orb.detectAndCompute(_gray_u8(seen[j]), None)
+        size = (max(w // factor, 8), max(image_set.kept_rows // factor, 8))
+        kept = [cv2.resize(np.asarray(im), size, interpolation=cv2.INTER_AREA) for im in kept]
+    none = np.zeros((0, 2), np.float32), np.zeros(n, np.int32), np.zeros((0, 32), np.uint8)
+    tilt = image_set.imu_tilt_rad if config.imu_level else None
+    angles = image_set.fov_rad, image_set.camera_angle_rad
+    frame = StoredFeatures(*none, n, h, w, *angles, factor, tilt)
+    return frame, np.stack([_gray_u8(im) for im in kept])
+
+
+def detected(frame: StoredFeatures, seen: np.ndarray, config: TwoViewConfig) -> StoredFeatures:
+    """``frame`` with ORB's keypoints of the images ``seen`` (both :func:`orb_input`'s)."""
+    reduced = frame.factor > 1
+    per_image = config.reduced_keypoints_per_image if reduced else config.keypoints_per_image
+    threshold = config.reduced_fast_threshold if reduced else config.fast_threshold
+    orb = _orb(per_image, frame.width // frame.factor, threshold)
+    points: list[np.ndarray] = [frame.points]
+    counts = np.zeros(frame.count, dtype=np.int32)
+    descriptors: list[np.ndarray] = [frame.descriptors]
+    for j, image in enumerate(seen):
+        keypoints, desc = orb.detectAndCompute(image, None)
         if desc is None or not keypoints:
             continue
         points.append(np.asarray(cv2.KeyPoint.convert(keypoints), dtype=np.float32).reshape(-1, 2))
-        per_image[j] = len(keypoints)
+        counts[j] = len(keypoints)
         descriptors.append(desc)
-    return StoredFeatures(
-        np.concatenate(points),
-        per_image,
-        np.concatenate(descriptors),
-        count=n,
-        height=h,
-        width=w,
-        fov_rad=image_set.fov_rad,
-        camera_angle_rad=image_set.camera_angle_rad,
-        factor=factor,
-        imu_tilt_rad=image_set.imu_tilt_rad if config.imu_level else None,
-    )
+    arrays = np.concatenate(points), counts, np.concatenate(descriptors)
+    return replace(frame, points=arrays[0], per_image=arrays[1], descriptors=arrays[2])
 
 
 def sweep_features(image_set: ImageSet, config: TwoViewConfig | None = None) -> SweepFeatures:

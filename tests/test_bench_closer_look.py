@@ -54,3 +54,11 @@ def test_bench_closer_look_decides_the_return_known_with_it_and_new_without() ->
         "known, 44 inliers"
     )
     assert lines[4].startswith("revisit, closer look off:") and lines[4].endswith("new")
+    kept = [line.rsplit(", ", 1) for line in lines[5:7]]
+    assert [k[0].split(":")[0] for k in kept] == [
+        "new junction, closer_keeps_images on",
+        "new junction, closer_keeps_images off",
+    ]
+    images, keypoints = (float(k[1].split()[0]) for k in kept)
+    # one byte a pixel ORB sees (6 images, their kept 200 of 400 rows), and the counts
+    assert abs(images - (6 * 200 * 400 + 24) / 1024) < 0.05 and keypoints < images / 4

@@ -118,3 +118,50 @@ def test_a_sweep_the_check_sees_whole_gets_no_closer_look(data: np.lib.npyio.Npz
 def test_closer_keypoints_are_validated() -> None:
     with pytest.raises(LocalizerError, match="closer_keypoints_per_image"):
         LocalizerConfig(closer_keypoints_per_image=-1)
+
+
+@pytest.mark.parametrize("keeps_images", [True, False])
+def test_keypoints_are_found_only_for_the_junction_looked_at_closer(
+    data: np.lib.npyio.NpzFile, keeps_images: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Keeping the images (the default), no new junction's closer-look keypoints are
+    found until a closer look asks for them, and then only the visit's and the
+    expected junction's; without, every new junction's at once. The decision is the
+    same both ways."""
+    from pipemap.localizer import closer
+
+    found: list[int] = []
+    real = closer.detected
+    monkeypatch.setattr(closer, "detected", lambda *a: found.append(a[0].count) or real(*a))
+    loc = Localizer(LocalizerConfig(lamp=True, closer_keeps_images=keeps_images))
+    loc.localize(_sweep(data, 6), exits_rad=tuple(data["exits_6"]))
+    images = 6 * _sweep(data, 6).kept_rows * 400  # one byte a pixel ORB would see
+    first = loc._closer.nbytes
+    assert len(found) == loc._closer.detections == (0 if keeps_images else 1)
+    assert (first >= images) is keeps_images
+
+    loc = Localizer(LocalizerConfig(lamp=True, closer_keeps_images=keeps_images))
+    node, decision = _walk(loc, data)  # two new junctions, then the closer look
+    assert decision.known and decision.node == node  # type: ignore[attr-defined]
+    assert loc._closer.taken == 1
+    # Lazily: the revisit's and visit 6's, not the dead end's (still its images).
+    assert loc._closer.detections == (2 if keeps_images else 3)
+    assert len(found) == (2 if keeps_images else 4)
+    if keeps_images:  # visit 6's images gave way to its keypoints
+        assert images < loc._closer.nbytes < images + first // 2
+
+
+def test_the_closer_look_finds_the_same_keypoints_lazily(data: np.lib.npyio.NpzFile) -> None:
+    """A junction's keypoints found from its kept images are the very ones found at once."""
+    eager = CloserLook(LocalizerConfig(closer_keeps_images=False))
+    lazy = CloserLook(LocalizerConfig())
+    sweep = _sweep(data, 6)
+    eager.keep(0, sweep)
+    lazy.keep(0, sweep)
+    assert lazy.detections == 0 and eager.detections == 1
+    a, b = eager.known(0), lazy.known(0)
+    assert a is not None and b is not None and lazy.detections == 1
+    assert np.array_equal(a.bearings, b.bearings) and np.array_equal(a.descriptors, b.descriptors)
+    assert lazy.nbytes == eager.nbytes
+    lazy.known(0)
+    assert lazy.detections == 1  # found once
