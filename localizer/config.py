@@ -13,7 +13,14 @@ from pipemap.localizer.ports import PORT_TOLERANCE_RAD
 from pipemap.localizer.presets import PAPER_THRESHOLD
 from pipemap.localizer.twoview import TwoViewConfig
 
-__all__ = ["DEFAULT_THRESHOLD", "PAPER", "PIPEMAP_CHECKS", "PIPEMAP_REFINEMENTS", "LocalizerConfig"]
+__all__ = [
+    "COST_SWITCHES",
+    "DEFAULT_THRESHOLD",
+    "PAPER",
+    "PIPEMAP_CHECKS",
+    "PIPEMAP_REFINEMENTS",
+    "LocalizerConfig",
+]
 
 #: The localizer's default threshold: the paper's (see :mod:`.presets`).
 DEFAULT_THRESHOLD = PAPER_THRESHOLD
@@ -25,6 +32,9 @@ PIPEMAP_CHECKS = ("distinct_consecutive", "two_view", "verify", "port_check", "o
 #: Switches that refine one of those checks (and do nothing without it); the paper's
 #: rule turns them off with it.
 PIPEMAP_REFINEMENTS = ("odometry_heading_bias",)
+#: Switches that trade memory for time and change no decision; every rule keeps them
+#: as set.
+COST_SWITCHES = ("closer_keeps_images",)
 
 
 @dataclass(frozen=True)

@@ -10,15 +10,26 @@ import numpy as np
 import pytest
 
 from pipemap.localizer import FastConfig, ImageSet, Localizer, LocalizerConfig
-from pipemap.localizer.config import PAPER, PIPEMAP_CHECKS, PIPEMAP_REFINEMENTS
+from pipemap.localizer.config import (
+    COST_SWITCHES,
+    PAPER,
+    PIPEMAP_CHECKS,
+    PIPEMAP_REFINEMENTS,
+)
 from tests.localizer.junctions import CORNER_EXITS, FOV_RAD, TEE_EXITS, junction, views
 
 
 def test_the_paper_rule_has_none_of_pipemaps_checks() -> None:
-    # Every switch of the settings: the paper's rule keeps active vision (its
-    # Algorithm 3) and nothing else. A check added later that the rule kept fails here.
-    switches = {f.name: getattr(PAPER, f.name) for f in fields(PAPER) if f.type == "bool"}
+    # Every switch of the settings that can change a decision: the paper's rule keeps
+    # active vision (its Algorithm 3) and nothing else. A check added later that the
+    # rule kept fails here; a switch of cost alone must say it changes no decision.
+    switches = {
+        f.name: getattr(PAPER, f.name)
+        for f in fields(PAPER)
+        if f.type == "bool" and f.name not in COST_SWITCHES
+    }
     assert {name for name, on in switches.items() if on} == {"active_vision"}
+    assert all(getattr(PAPER, name) == getattr(LocalizerConfig(), name) for name in COST_SWITCHES)
     assert set(PIPEMAP_CHECKS) | set(PIPEMAP_REFINEMENTS) == set(switches) - {"active_vision"}
     assert LocalizerConfig().paper_rule() == PAPER
     assert (PAPER.threshold, PAPER.fast, PAPER.lamp) == (0.36, FastConfig(), None)
