@@ -37,9 +37,9 @@ explorer watches for what that looks like, and counts it:
   Once the loops the robot closed pin the heading's drift down (the localizer's
   :meth:`~localizer.odometry.DeadReckoning.fitted`, handed over as
   :attr:`MapExplorer.odometry`), both checks compare positions with the fitted drift
-  taken out, and a known junction may lie as far off as the localizer's own check
-  allows (:meth:`~localizer.odometry.DeadReckoning.tolerance_for`). Until then every
-  position and tolerance is the robot's dead reckoning as given.
+  taken out: a known junction is checked as the localizer checked it, before the
+  loop it closes was fitted (:meth:`~localizer.odometry.DeadReckoning.closing_check`).
+  Until then every position and tolerance is the robot's dead reckoning as given.
 
 After ``max_inconsistencies`` junctions that show any of these the explorer stops with the status
 ``map inconsistent`` rather than wander: a map it cannot trust cannot say what is
@@ -224,10 +224,14 @@ class MapExplorer:
                     break
             self._first_visit(node, here, odometer_m)
         elif node in self._positions:
-            off = self._offset_m(fitted, node, here, self._positions[node])
-            if fitted is not None:
-                allowed = max(tolerance, fitted.tolerance_for(node))
+            # The localizer's check as it decided (the loop this visit closes not yet
+            # in the fit), else the robot's dead reckoning as given.
+            checked = None if fitted is None else fitted.closing_check(node)
+            if checked is not None:
+                off, allowed = checked[0], max(tolerance, checked[1])
             else:
+                x, y = self._positions[node]
+                off = math.hypot(here[0] - x, here[1] - y)
                 allowed = max(tolerance, self._drift_since_m(node, odometer_m))
             if off > allowed:
                 found.append(f"junction {node} is {off:.2f} m from where it was by odometry")

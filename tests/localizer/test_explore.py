@@ -385,13 +385,15 @@ def test_the_heading_allowance_widens_with_the_robot_s_drift() -> None:
     assert ExploreConfig().drifting(1.0) == plain
 
 
-def test_with_the_heading_fitted_a_drift_past_the_allowance_is_no_inconsistency() -> None:
+def test_with_the_heading_fitted_a_revisit_is_checked_as_the_localizer_checked_it() -> None:
     # 1e-3 rad/m, past the 6e-4 the explorer allows for: by raw dead reckoning the
-    # robot finds its first junctions metres from where they were. The localizer's
-    # dead reckoning fits the drift to the loops closed; checked with it taken out,
-    # the same walk is consistent throughout and covers every pipe.
+    # robot finds its first junctions metres from where they were. A localizer that
+    # allows for 1.5e-3 recognises them; once it has fitted the drift to the loops
+    # closed, the explorer checks each revisit as the localizer did, and the same walk
+    # is consistent throughout and covers every pipe.
+    wide = LocalizerConfig(odometry_heading_drift_per_m=1.5e-3)
     raw = _long_pipes(1e-3, ExploreConfig())
-    fitted = _long_pipes(1e-3, ExploreConfig(), fit=True)
+    fitted = _long_pipes(1e-3, ExploreConfig(), fit=True, localizer=wide)
     assert raw.run() is ExploreEnd.INCONSISTENT
     assert "from where it was by odometry" in raw.explorer.inconsistencies[0]
     assert fitted.run() is ExploreEnd.FINISHED
@@ -401,15 +403,20 @@ def test_with_the_heading_fitted_a_drift_past_the_allowance_is_no_inconsistency(
 
 
 def test_until_the_heading_is_fitted_the_explorer_checks_by_its_own_allowances() -> None:
-    # The localizer's dead reckoning handed over, but not fitted (the paper's rule
-    # fits nothing): the explorer's own allowances decide, here none for the heading.
-    unfitted = LocalizerConfig(odometry_heading_bias=False)
+    # A localizer that allows for 1.5e-3 rad/m and trusts its fit only late (what
+    # the fit leaves uncertain is at least 1.4e-3): at the first revisits its fit is
+    # not used, and the explorer's own allowance (6e-4) finds the robot's 1e-3 too
+    # much, at two junctions; then the fit is trusted and the rest is consistent.
+    late = LocalizerConfig(
+        odometry_heading_drift_per_m=1.5e-3, odometry_heading_residual_per_m=1.4e-3
+    )
+    walk = _long_pipes(1e-3, ExploreConfig(), fit=True, localizer=late)
+    assert walk.run() is ExploreEnd.FINISHED
+    assert walk.odometry is not None and walk.odometry.fitted()
+    assert len(walk.explorer.inconsistencies) == 2
+    assert all("from where it was by odometry" in i for i in walk.explorer.inconsistencies)
+    # Fitted, the localizer's check decides, whatever the explorer's own allowance.
     own = ExploreConfig(heading_drift_per_m=0.0)
-    walk = _long_pipes(MEASURED_RAD_PER_M, own, fit=True, localizer=unfitted)
-    assert walk.run() is ExploreEnd.INCONSISTENT
-    assert walk.odometry is not None and not walk.odometry.fitted()
-    assert "from where it was by odometry" in walk.explorer.inconsistencies[0]
-    # Fitted, the localizer's check decides: the revisits lie where they were.
     fitted = _long_pipes(MEASURED_RAD_PER_M, own, fit=True)
     assert fitted.run() is ExploreEnd.FINISHED
     assert fitted.explorer.inconsistencies == []
