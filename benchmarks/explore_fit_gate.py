@@ -20,42 +20,17 @@ exit ports on revisits.
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import sys
+from pathlib import Path
 
 from pipemap.localizer import Decision, ExploreConfig, LocalizerConfig, MapExplorer, TopoMap
 from pipemap.localizer.odometry import DeadReckoning
 from pipemap.localizer.ports import clockwise_ports
-from pipemap.recorder import Topic
-from pipemap.recorder.schemas.pipemap_log_pb2 import NodeEvent, TrueSweep
-from pipemap.replay import StreamSource
 
-Visit = tuple[float, float, float, tuple[float, ...], str]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-
-def visits(log: str) -> list[Visit]:
-    """Each visit's dead reckoning (x, y), odometer, exits and true junction, in order."""
-    source = StreamSource(log, (Topic.NODE, Topic.TRUE_SWEEP))
-    scans: dict[int, tuple[float, float, float, tuple[float, ...]]] = {}
-    for m in source.robot_stream():
-        if m.topic == Topic.NODE:
-            event = NodeEvent.FromString(m.data)
-            if event.kind == NodeEvent.EXITS and event.visit_id not in scans:
-                exits = tuple(event.exits_rad)
-                scans[event.visit_id] = (
-                    event.x_estimate_m,
-                    event.y_estimate_m,
-                    event.odometer_m,
-                    exits,
-                )
-    truth: dict[int, str] = {}
-    for m in source.truth():
-        if m.topic == Topic.TRUE_SWEEP:
-            sweep = TrueSweep.FromString(m.data)
-            truth.setdefault(sweep.visit_id, sweep.node)
-    return [(*scans[v], truth[v]) for v in sorted(scans) if v in truth and scans[v][3]]
+from heading_fit_gate import each_log, scanned_visits  # noqa: E402
 
 
 def _alarms(explorer: MapExplorer, seen: int, visit: int, out: dict[str, list[int]]) -> None:
@@ -74,7 +49,7 @@ def gate(log: str) -> dict[str, object]:
     alarms: dict[str, dict[str, list[int]]] = {n: {"new": [], "known": []} for n in explorers}
     ids: dict[str, int] = {}
     first_fitted = None
-    rows = visits(log)
+    rows = [row for row in scanned_visits(log) if row[3]]  # a scan that found exits
     for index, (x, y, odometer, exits, label) in enumerate(rows, 1):
         odometry.at((x, y), odometer)
         known = label in ids
@@ -107,25 +82,20 @@ def _list(at: object) -> str:
     return f"{len(at)}" + (f" (visits {', '.join(map(str, at))})" if at else "")
 
 
+def _line(row: dict[str, object]) -> str:
+    first = row["first_fitted"]
+    alarms = "; ".join(
+        f"{name}: new {_list(row[name + '_new'])}, known {_list(row[name + '_known'])}"
+        for name in ("raw", "fitted")
+    )
+    used = first if first is not None else math.nan
+    return (
+        f"{row['log']}: {row['visits']} visits, fit used from visit {used}; false alarms, {alarms}"
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("logs", nargs="+", metavar="LOG")
-    parser.add_argument("--json", action="store_true", help="one JSON object a line")
-    args = parser.parse_args(argv)
-    for log in args.logs:
-        row = gate(log)
-        if args.json:
-            print(json.dumps(row), flush=True)
-            continue
-        first = row["first_fitted"]
-        print(
-            f"{log}: {row['visits']} visits, fit used from visit "
-            f"{first if first is not None else math.nan}; false alarms, raw: new "
-            f"{_list(row['raw_new'])}, known {_list(row['raw_known'])}; fitted: new "
-            f"{_list(row['fitted_new'])}, known {_list(row['fitted_known'])}",
-            flush=True,
-        )
-    return 0
+    return each_log(argv, __doc__.split("\n\n")[0], gate, _line)
 
 
 if __name__ == "__main__":
