@@ -24,6 +24,7 @@ import json
 import statistics
 import sys
 import time
+from collections.abc import Callable
 
 from pipemap.localizer import LocalizerConfig
 from pipemap.localizer.odometry import DeadReckoning
@@ -32,21 +33,27 @@ from pipemap.recorder.schemas.pipemap_log_pb2 import NodeEvent, TrueSweep
 from pipemap.replay import StreamSource
 
 
-def visits(log: str) -> list[tuple[float, float, float, str]]:
-    """Each visit's dead reckoning (x, y), odometer and true junction, in order."""
+def scanned_visits(log: str) -> list[tuple[float, float, float, tuple[float, ...], str]]:
+    """Each visit's dead reckoning (x, y), odometer, exits and true junction, in order."""
     source = StreamSource(log, (Topic.NODE, Topic.TRUE_SWEEP))
-    scans: dict[int, tuple[float, float, float]] = {}
+    scans: dict[int, tuple[float, float, float, tuple[float, ...]]] = {}
     for m in source.robot_stream():
         if m.topic == Topic.NODE:
             event = NodeEvent.FromString(m.data)
             if event.kind == NodeEvent.EXITS and event.visit_id not in scans:
-                scans[event.visit_id] = (event.x_estimate_m, event.y_estimate_m, event.odometer_m)
+                where = (event.x_estimate_m, event.y_estimate_m, event.odometer_m)
+                scans[event.visit_id] = (*where, tuple(event.exits_rad))
     truth: dict[int, str] = {}
     for m in source.truth():
         if m.topic == Topic.TRUE_SWEEP:
             sweep = TrueSweep.FromString(m.data)
             truth.setdefault(sweep.visit_id, sweep.node)
     return [(*scans[v], truth[v]) for v in sorted(scans) if v in truth]
+
+
+def visits(log: str) -> list[tuple[float, float, float, str]]:
+    """Each visit's dead reckoning (x, y), odometer and true junction, in order."""
+    return [(x, y, s, node) for x, y, s, _, node in scanned_visits(log)]
 
 
 def gate(log: str) -> dict[str, object]:
@@ -94,26 +101,38 @@ def gate(log: str) -> dict[str, object]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def each_log(
+    argv: list[str] | None,
+    description: str,
+    measure: Callable[[str], dict[str, object]],
+    line: Callable[[dict[str, object]], str],
+) -> int:
+    """Run ``measure`` on each LOG of the command line and print each row as ``line``
+    says, or (``--json``) as one JSON object a line."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("logs", nargs="+", metavar="LOG")
     parser.add_argument("--json", action="store_true", help="one JSON object a line")
     args = parser.parse_args(argv)
     for log in args.logs:
-        row = gate(log)
-        if args.json:
-            print(json.dumps(row), flush=True)
-            continue
-        print(
-            f"{log}: {row['visits']} visits, {row['revisits']} revisits, fit used at "
-            f"{row['fitted']}, check differs at {row['differ']}; true junction outside "
-            f"{row['missed_off']}/{row['missed_on']}, others inside "
-            f"{row['others_off']}/{row['others_on']} (fit off/on); worst corrected "
-            f"offset {row['worst_fitted_offset_m']} m; a refit {row['fit_ms_median']} ms "
-            f"median, {row['fit_ms_max']} ms at most ({row['knots']} knots)",
-            flush=True,
-        )
+        row = measure(log)
+        print(json.dumps(row) if args.json else line(row), flush=True)
     return 0
+
+
+def _line(row: dict[str, object]) -> str:
+    log = row["log"]
+    return (
+        f"{log}: {row['visits']} visits, {row['revisits']} revisits, fit used at "
+        f"{row['fitted']}, check differs at {row['differ']}; true junction outside "
+        f"{row['missed_off']}/{row['missed_on']}, others inside "
+        f"{row['others_off']}/{row['others_on']} (fit off/on); worst corrected "
+        f"offset {row['worst_fitted_offset_m']} m; a refit {row['fit_ms_median']} ms "
+        f"median, {row['fit_ms_max']} ms at most ({row['knots']} knots)"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    return each_log(argv, __doc__.split("\n\n")[0], gate, _line)
 
 
 if __name__ == "__main__":

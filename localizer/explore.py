@@ -34,6 +34,13 @@ explorer watches for what that looks like, and counts it:
   junction declared new is checked against the capped tolerance only: two places
   are taken for one only where the dead reckoning is sure.
 
+  Once the loops the robot closed pin the heading's drift down (the localizer's
+  :meth:`~localizer.odometry.DeadReckoning.fitted`, handed over as
+  :attr:`MapExplorer.odometry`), both checks compare positions with the fitted drift
+  taken out: a known junction is checked as the localizer checked it, before the
+  loop it closes was fitted (:meth:`~localizer.odometry.DeadReckoning.closing_check`).
+  Until then every position and tolerance is the robot's dead reckoning as given.
+
 After ``max_inconsistencies`` junctions that show any of these the explorer stops with the status
 ``map inconsistent`` rather than wander: a map it cannot trust cannot say what is
 left to explore, and every false new node would add ports to explore forever. It
@@ -51,7 +58,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 from pipemap.localizer.decision import Decision
-from pipemap.localizer.odometry import PathMark, PathMoment, scaled
+from pipemap.localizer.odometry import DeadReckoning, PathMark, PathMoment, scaled
 from pipemap.localizer.routes import RouteStep, describe_step, nearest_route, plan_route
 from pipemap.localizer.topomap import TopoMap
 
@@ -176,6 +183,10 @@ class MapExplorer:
     rivals: Callable[[], RivalMaps] | None = None
     #: The (node, port) of the leader's map already driven to tell maps apart.
     _told: set[tuple[int, int]] = field(default_factory=set)
+    #: The localizer's dead reckoning (``Localizer.dead_reckoning``), at the visit
+    #: being checked: once it has fitted the heading's drift, positions are compared
+    #: with the drift taken out (``None``: always as given).
+    odometry: DeadReckoning | None = None
 
     def _tolerance_m(self, odometer_m: float) -> float:
         c = self.config
@@ -201,10 +212,11 @@ class MapExplorer:
         tolerance = self._tolerance_m(odometer_m)
         self._path.add(here, odometer_m)
         ports = topomap.ports(node)
+        fitted = self._fitted(here)
         if not decision.known:
             for k, (x, y) in sorted(self._positions.items()):
                 same_kind = ports is not None and len(topomap.ports(k) or ()) == len(ports)
-                off = math.hypot(here[0] - x, here[1] - y)
+                off = self._offset_m(fitted, k, here, (x, y))
                 if k != node and same_kind and off < tolerance:
                     found.append(
                         f"new junction {node} is {off:.2f} m from known junction {k} by odometry"
@@ -212,13 +224,40 @@ class MapExplorer:
                     break
             self._first_visit(node, here, odometer_m)
         elif node in self._positions:
-            x, y = self._positions[node]
-            off = math.hypot(here[0] - x, here[1] - y)
-            if off > max(tolerance, self._drift_since_m(node, odometer_m)):
+            # The localizer's check as it decided (the loop this visit closes not yet
+            # in the fit), else the robot's dead reckoning as given.
+            checked = None if fitted is None else fitted.closing_check(node)
+            if checked is not None:
+                off, allowed = checked[0], max(tolerance, checked[1])
+            else:
+                x, y = self._positions[node]
+                off = math.hypot(here[0] - x, here[1] - y)
+                allowed = max(tolerance, self._drift_since_m(node, odometer_m))
+            if off > allowed:
                 found.append(f"junction {node} is {off:.2f} m from where it was by odometry")
         else:
             self._first_visit(node, here, odometer_m)
         return found
+
+    def _fitted(self, here: tuple[float, float]) -> DeadReckoning | None:
+        """The localizer's dead reckoning, if it is at this visit (``here``) and has
+        fitted the heading's drift to the loops closed; else ``None``."""
+        odometry = self.odometry
+        if odometry is None or odometry.here != here or not odometry.fitted():
+            return None
+        return odometry
+
+    @staticmethod
+    def _offset_m(
+        fitted: DeadReckoning | None,
+        node: int,
+        here: tuple[float, float],
+        there: tuple[float, float],
+    ) -> float:
+        """How far junction ``node``'s first visit (at ``there``) is from ``here``: with
+        the fitted heading drift taken out when ``fitted`` is given."""
+        off = None if fitted is None else fitted.offset_m(node)
+        return math.hypot(here[0] - there[0], here[1] - there[1]) if off is None else off
 
     def _first_visit(self, node: int, here: tuple[float, float], odometer_m: float) -> None:
         self._positions[node] = here

@@ -127,6 +127,12 @@ class Localizer:
         return tuple((h.map, h.exit_ports) for h in self._hypotheses.live)
 
     @property
+    def dead_reckoning(self) -> DeadReckoning:
+        """The robot's dead reckoning at the visits decided so far, with the heading's
+        drift fitted to the loops they closed (what the explorer checks positions by)."""
+        return self._odometry
+
+    @property
     def known_count(self) -> int:
         """Number of junctions known so far."""
         return len(self._matcher)

@@ -287,6 +287,9 @@ class DeadReckoning:
         self.here: tuple[float, float] | None = None
         self.odometer_m: float | None = None
         self.tolerance_m = 0.0
+        #: The check of the last recognised visit as it was made, before the loop it
+        #: closed refitted the drift: (its point, junction, offset, tolerance).
+        self._closing: tuple[int, int, float | None, float] | None = None
 
     def at(self, position_m: tuple[float, float] | None, odometer_m: float | None) -> None:
         """The current visit is at ``position_m`` after ``odometer_m`` driven (either
@@ -323,9 +326,20 @@ class DeadReckoning:
             return
         mark = self.marks.get(node)
         moment = 0.0 if mark is None else self.path.since(mark)
+        self._closing = (self.point, node, self.offset_m(node), self.tolerance_for(node))
         self.bias.close(first, self.point, moment)
         if self.path.mark is not None:
             self.anchors[node] = self.path.mark
+
+    def closing_check(self, node: int) -> tuple[float, float] | None:
+        """The offset and tolerance known junction ``node`` was checked with at the
+        current visit, before the loop it closed (:meth:`closed`) was fitted: the
+        localizer's check as it decided. ``None`` when the current visit closed no
+        fitted loop at ``node`` or either position is unknown."""
+        closing = self._closing
+        if closing is None or closing[:2] != (self.point, node) or closing[2] is None:
+            return None
+        return closing[2], closing[3]
 
     def heading_drift_per_m(self) -> float:
         """The heading drift the check allows for: ``odometry_heading_drift_per_m``

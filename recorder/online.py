@@ -202,6 +202,7 @@ def make_policy(
         return RightHandPolicy(robot.start_radius_m, robot.drift_per_m)
     explorer = MapExplorer(config if config is not None else ExploreConfig())
     explorer.rivals = online.localizer.hypothesis_exits
+    explorer.odometry = online.localizer.dead_reckoning
     return MapPolicy(online, explorer)
 
 

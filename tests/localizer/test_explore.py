@@ -13,6 +13,7 @@ from pipemap.localizer import (
     Decision,
     ExploreConfig,
     ExploreEnd,
+    LocalizerConfig,
     MapExplorer,
     RouteStep,
     TopoMap,
@@ -24,7 +25,9 @@ from pipemap.localizer import (
     plan_route,
     route_length_m,
 )
+from pipemap.localizer.odometry import DeadReckoning
 from pipemap.sim.network import Network, build_network
+from pipemap.sim.network_model import Node, Pipe
 
 
 @dataclass
@@ -50,9 +53,16 @@ class Walk:
     #: Pipes (sorted label pairs) the robot cannot get through: it gives them up.
     blocked_pipes: frozenset[tuple[str, str]] = frozenset()
     gave_up: list[tuple[str, str]] = field(default_factory=list)
+    #: Hand the explorer a localizer's dead reckoning, fed each visit's position and
+    #: decision as :meth:`Localizer.localize` feeds it (the heading's drift fitted to
+    #: the loops closed).
+    fit: bool = False
+    localizer: LocalizerConfig = field(default_factory=LocalizerConfig)
 
     def __post_init__(self) -> None:
         self.explorer = MapExplorer(self.config)
+        self.odometry = DeadReckoning(self.localizer) if self.fit else None
+        self.explorer.odometry = self.odometry
         self.first_heading: dict[int, float] = {}
         self.label_of: dict[int, str] = {}
         self.node_of: dict[str, int] = {}
@@ -123,6 +133,12 @@ class Walk:
                 if self.dead_reckoning is None:
                     self.dead_reckoning = (node.x_m, node.y_m)
                 x, y = self.dead_reckoning
+            if self.odometry is not None:
+                self.odometry.at((x, y), self.odometer_m)
+                if decision.known:
+                    self.odometry.closed(decision.node)
+                else:
+                    self.odometry.remember(decision.node)
             step = self.explorer.step(self.topomap, decision, x, y, self.odometer_m)
             if step.stop is not None:
                 return step.stop
@@ -327,11 +343,20 @@ def test_a_known_junction_may_drift_by_the_loop_allowance() -> None:
 MEASURED_RAD_PER_M = 3.8e-4
 
 
-def _long_pipes(heading_drift_per_m: float, config: ExploreConfig) -> Walk:
+def _long_pipes(
+    heading_drift_per_m: float,
+    config: ExploreConfig,
+    fit: bool = False,
+    localizer: LocalizerConfig | None = None,
+) -> Walk:
     """A walk of ``grid:3x3`` with 20 m pipes (loops of 80 m) whose dead reckoning's
-    heading drifts by ``heading_drift_per_m``."""
+    heading drifts by ``heading_drift_per_m`` (``fit``, ``localizer``: see
+    :attr:`Walk.fit`)."""
     network = build_network("grid:3x3", spacing_m=20.0)
-    return Walk(network, heading_drift_per_m=heading_drift_per_m, config=config)
+    walk = Walk(network, heading_drift_per_m=heading_drift_per_m, config=config, fit=fit)
+    if localizer is not None:
+        walk = replace(walk, localizer=localizer)
+    return walk
 
 
 def test_a_known_junction_may_drift_by_the_heading_allowance() -> None:
@@ -358,6 +383,78 @@ def test_the_heading_allowance_widens_with_the_robot_s_drift() -> None:
     assert wide.heading_drift_per_m == pytest.approx(4 * plain.heading_drift_per_m)
     assert wide.odometry_radius_m == plain.odometry_radius_m
     assert ExploreConfig().drifting(1.0) == plain
+
+
+def test_with_the_heading_fitted_a_revisit_is_checked_as_the_localizer_checked_it() -> None:
+    # 1e-3 rad/m, past the 6e-4 the explorer allows for: by raw dead reckoning the
+    # robot finds its first junctions metres from where they were. A localizer that
+    # allows for 1.5e-3 recognises them; once it has fitted the drift to the loops
+    # closed, the explorer checks each revisit as the localizer did, and the same walk
+    # is consistent throughout and covers every pipe.
+    wide = LocalizerConfig(odometry_heading_drift_per_m=1.5e-3)
+    raw = _long_pipes(1e-3, ExploreConfig())
+    fitted = _long_pipes(1e-3, ExploreConfig(), fit=True, localizer=wide)
+    assert raw.run() is ExploreEnd.INCONSISTENT
+    assert "from where it was by odometry" in raw.explorer.inconsistencies[0]
+    assert fitted.run() is ExploreEnd.FINISHED
+    assert fitted.explorer.inconsistencies == []
+    assert fitted.odometry is not None and fitted.odometry.fitted()
+    assert _pipes(fitted.network) <= set(fitted.traversals())
+
+
+def test_until_the_heading_is_fitted_the_explorer_checks_by_its_own_allowances() -> None:
+    # A localizer that allows for 1.5e-3 rad/m and trusts its fit only late (what
+    # the fit leaves uncertain is at least 1.4e-3): at the first revisits its fit is
+    # not used, and the explorer's own allowance (6e-4) finds the robot's 1e-3 too
+    # much, at two junctions; then the fit is trusted and the rest is consistent.
+    late = LocalizerConfig(
+        odometry_heading_drift_per_m=1.5e-3, odometry_heading_residual_per_m=1.4e-3
+    )
+    walk = _long_pipes(1e-3, ExploreConfig(), fit=True, localizer=late)
+    assert walk.run() is ExploreEnd.FINISHED
+    assert walk.odometry is not None and walk.odometry.fitted()
+    assert len(walk.explorer.inconsistencies) == 2
+    assert all("from where it was by odometry" in i for i in walk.explorer.inconsistencies)
+    # Fitted, the localizer's check decides, whatever the explorer's own allowance.
+    own = ExploreConfig(heading_drift_per_m=0.0)
+    fitted = _long_pipes(MEASURED_RAD_PER_M, own, fit=True)
+    assert fitted.run() is ExploreEnd.FINISHED
+    assert fitted.explorer.inconsistencies == []
+
+
+def _loop_then_comb(teeth: int = 5, gap_m: float = 4.0) -> Network:
+    """A 25 m square loop the robot closes first (so the heading's drift can be
+    fitted), then a comb: a row of junctions 10 m apart going west, each with a 6 m
+    dead end north, and a row back east ``6 + gap_m`` m further north, each with a
+    6 m dead end south. A tooth of the row back ends ``gap_m`` from one of the row
+    out."""
+    nodes = [Node("S", 0.0, -8.0), Node("A", 0.0, 0.0), Node("E", 25.0, 0.0)]
+    nodes += [Node("F", 25.0, 25.0), Node("R", 0.0, 25.0)]
+    pipes = [Pipe("S", "A"), Pipe("A", "E"), Pipe("E", "F"), Pipe("F", "R"), Pipe("R", "A")]
+    back_y = 12.0 + gap_m
+    nodes += [Node("u", -10.0 * (teeth + 1), 0.0), Node("v", -10.0 * (teeth + 1), back_y)]
+    pipes += [Pipe(f"o{teeth}", "u"), Pipe("u", "v")]
+    for i in range(1, teeth + 1):
+        nodes += [Node(f"o{i}", -10.0 * i, 0.0), Node(f"ot{i}", -10.0 * i, 6.0)]
+        pipes += [Pipe("A" if i == 1 else f"o{i - 1}", f"o{i}"), Pipe(f"o{i}", f"ot{i}")]
+        nodes += [Node(f"b{i}", -10.0 * i, back_y), Node(f"bt{i}", -10.0 * i, 6.0 + gap_m)]
+        pipes += [Pipe("v" if i == teeth else f"b{i + 1}", f"b{i}"), Pipe(f"b{i}", f"bt{i}")]
+    return Network(tuple(nodes), tuple(pipes), entry="S")
+
+
+def test_with_the_heading_fitted_a_new_junction_is_not_put_on_a_known_one() -> None:
+    # Dead reckoning whose heading drifts by -7e-4 rad/m puts a dead end of the row
+    # back (4 m from the row out's) on top of a dead end of the row out: a correct new
+    # junction taken, by raw dead reckoning, for a known junction's place. With the
+    # drift fitted to the loop closed first, it lies metres away.
+    network = _loop_then_comb()
+    raw = Walk(network, heading_drift_per_m=-7e-4)
+    fitted = Walk(network, heading_drift_per_m=-7e-4, fit=True)
+    raw.run()
+    assert "from known junction" in raw.explorer.inconsistencies[0]
+    assert fitted.run() is ExploreEnd.FINISHED
+    assert fitted.explorer.inconsistencies == []
+    assert _pipes(network) <= set(fitted.traversals())
 
 
 @pytest.mark.parametrize("limit", [1, 2])

@@ -263,3 +263,18 @@ def test_until_the_loops_pin_the_drift_down_nothing_changes() -> None:
     assert fitted.log_likelihood(0) == raw.log_likelihood(0)
     # The laps of 20 m pipes do pin it down after one lap.
     assert _laps(LocalizerConfig(), 2, MEASURED_RAD_PER_M).fitted()
+
+
+def test_a_closing_visit_keeps_the_check_it_was_decided_by() -> None:
+    # Five laps, the last start not yet recognised: its check as the localizer makes
+    # it. Closing the loop refits the drift and anchors the junction here (its
+    # tolerance falls to the radius); the check as it was stays for the explorer.
+    dr = _laps(LocalizerConfig(), 5, MEASURED_RAD_PER_M)
+    before = (dr.offset_m(0), dr.tolerance_for(0))
+    assert dr.closing_check(0) is None  # this visit has closed nothing yet
+    dr.closed(0)
+    assert dr.closing_check(0) == before
+    assert dr.tolerance_for(0) < before[1]
+    assert dr.closing_check(1) is None  # another junction's: not this visit's
+    dr.at((0.0, 0.0), 900.0)  # the next visit
+    assert dr.closing_check(0) is None

@@ -97,3 +97,6 @@ def test_the_map_explorer_allows_the_drift_the_run_is_recorded_with(
     configs = [p.explorer.config for p in policies]  # type: ignore[union-attr]
     assert configs == [ExploreConfig(), ExploreConfig().drifting(4.0)]
     assert configs[1].heading_drift_per_m == pytest.approx(4 * configs[0].heading_drift_per_m)
+    # It checks positions by the online localizer's dead reckoning (its heading fit).
+    for p in policies:
+        assert p.explorer.odometry is p.online.localizer.dead_reckoning  # type: ignore[union-attr]
