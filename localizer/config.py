@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 from pipemap.errors import LocalizerError
 from pipemap.localizer.fastmatch import FastConfig
@@ -162,7 +163,8 @@ class LocalizerConfig:
         previous visit's included), the rotation is the NCC peak shift's, and neither
         the exits nor the dead reckoning are compared. The threshold, the similarity,
         active vision (the paper's Algorithm 3) and the illumination stay as set."""
-        return replace(self, **dict.fromkeys((*PIPEMAP_CHECKS, *PIPEMAP_REFINEMENTS), False))
+        off: dict[str, Any] = dict.fromkeys((*PIPEMAP_CHECKS, *PIPEMAP_REFINEMENTS), False)
+        return replace(self, **off)
 
     def __post_init__(self) -> None:
         if not -1.0 <= self.threshold <= 1.0:

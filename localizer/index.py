@@ -80,7 +80,8 @@ def descriptor(images: np.ndarray, fov_rad: float) -> np.ndarray:
     values = np.sign(raw) * np.log1p(np.abs(raw))
     values -= values.mean()
     norm = float(np.linalg.norm(values))
-    return (values / norm if norm > 0.0 else values).astype(np.float32)
+    descriptor: np.ndarray = (values / norm if norm > 0.0 else values).astype(np.float32)
+    return descriptor
 
 
 class DescriptorIndex:

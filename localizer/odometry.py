@@ -54,6 +54,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +77,7 @@ def drift_allowed(config: LocalizerConfig, factor: float) -> LocalizerConfig:
     return dataclasses.replace(config, **scaled(config, factor, (*fields, *heading)))
 
 
-def scaled(config: object, factor: float, fields: tuple[str, ...]) -> dict[str, float]:
+def scaled(config: object, factor: float, fields: tuple[str, ...]) -> dict[str, Any]:
     """Each of ``config``'s ``fields`` ``factor`` times as large, by name (for
     :func:`dataclasses.replace`)."""
     return {f: float(getattr(config, f)) * factor for f in fields}
@@ -204,7 +205,9 @@ class HeadingBias:
         count = int(p[-1, 2] // KNOT_M) + 2  # knots 0 .. past the last point
         # New knots start on the line run on straight past the last.
         at = KNOT_M * np.arange(1, count)
-        knots = self._weights(at, len(self.knots) + 1) @ self.knots if len(self.knots) else 0.0 * at
+        knots: np.ndarray = (
+            self._weights(at, len(self.knots) + 1) @ self.knots if len(self.knots) else 0.0 * at
+        )
         bends = np.zeros((max(count - 2, 0), count))
         for i in range(count - 2):
             bends[i, i : i + 3] = (1.0, -2.0, 1.0)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from typing import Any
+from typing import Any, cast
 
 from google.protobuf import json_format
 
@@ -169,7 +169,7 @@ def events(messages: Stamped) -> list[tuple[int, Any]]:
                 t_ns,
                 schemas.Log(
                     timestamp=timestamp(t_ns),
-                    level=_LEVELS.get(int(m.level), 0),
+                    level=cast(Any, _LEVELS.get(int(m.level), 0)),
                     message=m.msg,
                     name=m.name,
                 ),

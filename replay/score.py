@@ -478,4 +478,5 @@ def score(
     recorded = takes_recorded_threshold(recorded_threshold, config)
     config = config if config is not None else LocalizerConfig()
     result = replay(source, config, progress, keep_sets=False, recorded_threshold=recorded)
-    return score_replay(result, source, result.localizer.config.threshold, config.fast)
+    used = config if result.localizer is None else result.localizer.config
+    return score_replay(result, source, used.threshold, config.fast)

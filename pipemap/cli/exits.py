@@ -121,7 +121,7 @@ def guarded_standard_output() -> Iterator[None]:
     """``sys.stdout`` guarded within the block; a failure to write it leaves the
     descriptor pointing at /dev/null (what was not written is lost either way)."""
     original = sys.stdout
-    sys.stdout = _GuardedOutput(original)  # type: ignore[assignment]
+    sys.stdout = _GuardedOutput(original)  # type: ignore[assignment,unused-ignore]
     try:
         yield
     except (OutputClosed, StandardOutputError):

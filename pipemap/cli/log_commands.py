@@ -149,16 +149,16 @@ def run_record(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
     condition = args.condition
     if condition == "autonomous":
         condition += f" (explore {explore_policy(args)})"
-    status = result.status
+    outcome = result.status
     if result.status == "finished" and not result.ok:
-        status = "finished, but not every node and pipe was visited"
+        outcome = "finished, but not every node and pipe was visited"
     out.write(
         f"recorded {target} ({size_mb:.1f} MB, {result.messages} messages): network "
         f"{args.network}, condition {condition}, {result.sweeps} sweeps, "
         f"{result.visits} visits of {len(result.true_nodes)}/{result.node_count} nodes "
         f"({result.pipes_driven}/{result.pipe_count} pipes), "
         f"{result.distance_m:.2f} m in {result.duration_ns / 1e9:.0f} s simulated, "
-        f"{status}\n"
+        f"{outcome}\n"
     )
     if live is not None:
         if shown is not None:

@@ -129,7 +129,8 @@ def run_replay(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
             f"junctions, map written to {target}\n"
         )
     if results_log is not None:
-        api.save_results_log(result, results_log, result.localizer.config.threshold)
+        used = config if result.localizer is None else result.localizer.config
+        api.save_results_log(result, results_log, used.threshold)
     if graphml is not None:
         import networkx as nx  # 0.09 s to import: only for GraphML
 

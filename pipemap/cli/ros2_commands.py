@@ -57,7 +57,7 @@ def run_export(args: argparse.Namespace, out: TextIO, err: TextIO = sys.stderr) 
             lambda f: sorted(p.name for p in f.iterdir() if p.name in mine),
         )
     if Path(args.log).suffix == ".json":  # a map document: GeoJSON is all it gives
-        if ros2 is not None or tum is not None:
+        if ros2 is not None or tum is not None or geojson is None:
             raise InputError(
                 f"{args.log}: a map document gives --geojson only; --ros2 and "
                 "--tum need the run's log"
