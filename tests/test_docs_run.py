@@ -189,11 +189,14 @@ def _workspace(tmp_path: Path) -> Path:
     return work
 
 
-def _run_page(blocks: list[Block], tmp_path: Path) -> None:
+def _run_page(blocks: list[Block], tmp_path: Path) -> int:
+    """Run ``blocks`` in order in one folder; fail at the first that exits non-zero or
+    times out. Returns how many ran to the end (all of them when it returns)."""
     work = _workspace(tmp_path)
     bindir = str(Path(sys.executable).parent)
     env = {**os.environ, "PATH": bindir + os.pathsep + os.environ.get("PATH", "")}
     env.pop("PYTHONPATH", None)  # the installed pipemap, as a user runs it
+    ran = 0
     for block in blocks:
         try:
             done = subprocess.run(
@@ -212,6 +215,8 @@ def _run_page(blocks: list[Block], tmp_path: Path) -> None:
                 f"{block.name} exited {done.returncode}:\n{block.script}\n"
                 f"--- stdout (end)\n{done.stdout[-2000:]}\n--- stderr (end)\n{done.stderr[-2000:]}"
             )
+        ran += 1
+    return ran
 
 
 _BLOCKS = _all_blocks()
@@ -247,7 +252,7 @@ def _unit_class(name: str, blocks: list[Block]) -> type:
     pages spread over the workers (a module's functions would all go to one)."""
 
     def test_the_sh_blocks_run(self: object, tmp_path: Path) -> None:
-        _run_page(blocks, tmp_path)
+        assert _run_page(blocks, tmp_path) == len(blocks)
 
     body = {"test_the_sh_blocks_run": test_the_sh_blocks_run, "__module__": __name__}
     return type(name, (), body)
@@ -259,6 +264,7 @@ for _name, _blocks in _units():
 
 @pytest.mark.parametrize("block", [b for b in _BLOCKS if b.skip is not None], ids=lambda b: b.name)
 def test_a_skipped_block_says_why(block: Block) -> None:
+    assert block.skip is not None and block.skip.strip(), f"{block.name}: skipped without a reason"
     pytest.skip(block.skip)
 
 
@@ -355,7 +361,7 @@ def test_a_block_sees_the_checkout_and_shared(tmp_path: Path) -> None:
     script = "test -d recordings && test -f experiments/small.toml && command -v pipemap\n"
     if (ROOT.parent / "shared").is_dir():
         script += "test -d ../shared\n"
-    _run_page([Block(ROOT / "README.md", 1, script, None)], tmp_path)
+    assert _run_page([Block(ROOT / "README.md", 1, script, None)], tmp_path) == 1
 
 
 def test_every_install_block_is_skipped() -> None:
