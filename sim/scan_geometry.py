@@ -92,17 +92,20 @@ def axes_crossing(
     # (the apex of a shallow corner is wider by ``1/cos(turn/2)``, and the robot may
     # stand far up the other arm), the tolerance grows until both arms hold some.
     for tolerance_m in _ARM_TOLERANCES_M:
-        offsets = _arm_offsets(centres[clearance >= clearance.max() - tolerance_m], guess, u)
+        widest = centres[clearance >= clearance.max() - tolerance_m]
+        offsets = _arm_offsets(widest, guess, u, normals)
         if offsets is not None:
             crossing: np.ndarray = np.linalg.solve(normals, offsets)
             return crossing
     return None
 
 
-def _arm_offsets(widest: np.ndarray, guess: np.ndarray, u: np.ndarray) -> np.ndarray | None:
-    """Each arm's axis, as its points' mean offset across the arm's direction ``u[k]``;
-    ``None`` when an arm has fewer than 3 of the ``widest`` points."""
-    normals = np.stack([-u[:, 1], u[:, 0]], axis=1)
+def _arm_offsets(
+    widest: np.ndarray, guess: np.ndarray, u: np.ndarray, normals: np.ndarray
+) -> np.ndarray | None:
+    """Each arm's axis, as its points' mean offset along ``normals[k]`` (across the
+    arm's direction ``u[k]``); ``None`` when an arm has fewer than 3 of the ``widest``
+    points."""
     across = widest @ normals.T  # (P, 2): each point's offset across either arm
     # First guess of the arms: the direction each point lies in from the guess.
     arm = np.argmax((widest - guess) @ u.T, axis=1)
