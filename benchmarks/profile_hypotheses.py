@@ -19,7 +19,9 @@ the candidates; ``alike_branches``, ``_repeats``, ``_repeats_far``: the branch),
 junction, the inliers asked and found, whether it was computed or kept from
 earlier in the visit, its CPU milliseconds, and the decision that followed (its
 junction, the maps alive, the candidates rejected, the look-alikes named); then the
-fits computed and their CPU time by step.
+fits computed and their CPU time by step, and the decisions' CPU time with and
+without the fits computed (after a first replay, untimed, for what a process
+imports on first use).
 """
 
 from __future__ import annotations
@@ -116,11 +118,14 @@ def fit_trace(log: api.Log, config: LocalizerConfig) -> list[str]:
     real_localize = localizer_module.Localizer.localize
     real_fit = fitcache.VisitFits.fit
     spent: dict[str, list[float]] = {}
+    deciding = 0.0
 
     def localize(self, *args, **kwargs):  # type: ignore[no-untyped-def]
-        nonlocal visit
+        nonlocal visit, deciding
         visit += 1
+        start = time.process_time()
         d = real_localize(self, *args, **kwargs)
+        deciding += time.process_time() - start
         rejected = [i for i, _ in d.rejected]
         lines.append(
             f"visit {visit:>3} decided: node {d.node} {'known' if d.known else 'new'}, "
@@ -158,6 +163,11 @@ def fit_trace(log: api.Log, config: LocalizerConfig) -> list[str]:
         fitcache.VisitFits.fit = real_fit  # type: ignore[method-assign]
     for asker, times in sorted(spent.items()):
         lines.append(f"computed by {asker:<15} {len(times):>3} fits {sum(times):7.1f} ms CPU")
+    fitting = sum(sum(times) for times in spent.values())
+    lines.append(
+        f"decisions {deciding * 1000.0:.1f} ms CPU: fits {fitting:.1f} ms, "
+        f"the rest {deciding * 1000.0 - fitting:.1f} ms"
+    )
     return lines
 
 
@@ -172,6 +182,8 @@ def main() -> int:
     defaults = LocalizerConfig()
     print(f"# {args.log.name}")
     one = replace(defaults, hypotheses=1)
+    if args.fits:
+        api.replay(log, defaults)  # untimed: what a process imports on first use
     for name, config in (("defaults", defaults), ("--hypotheses 1", one)):
         if args.fits:
             print(f"## {name}: the fits asked")
