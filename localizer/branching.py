@@ -123,7 +123,7 @@ def new_branch(
     # Whether the look repeats counts only where nothing else says so and the new
     # map would live (a branch the look adds only lowers its weight).
     counts = not alike and _new_likelihood(loc, branches) is not None
-    repeats = _repeats(loc, branches, features, matched_all, exits, behind, fits, counts)
+    repeats = _repeats(loc, branches, features, matched_all, exits, behind, fits, counts, alike)
     log_likelihood = _new_likelihood(loc, branches)
     if log_likelihood is None:
         return None
@@ -148,6 +148,7 @@ def _repeats(
     behind: int | None,
     fits: dict[int, Fit],
     counts: bool = True,
+    alike: tuple[int, ...] = (),
 ) -> bool:
     """Whether the keypoints of another known junction than the branches' fit the
     sweep, its ports fitting the exits: of the :data:`REPEAT_CANDIDATES` best ranked
@@ -155,13 +156,16 @@ def _repeats(
     the robot came in by is taken there). Where none fits, :func:`_repeats_far`
     tries the best ranked beyond the odometry's reach, for the look alone. Unless
     the answer ``counts``, a junction that no fit can make a branch is not fitted
-    (and says nothing)."""
+    (and says nothing), nor is one of the look-alikes ``alike``: whether it is a
+    branch :func:`alike_branches` asked already (a look-alike that is one is no
+    candidate here). The ranking is left as it is: a look-alike passed over takes
+    its place among the candidates, so no other junction is fitted in its stead."""
     config, near = loc.config, loc._odometry.near
     other = _other(loc, branches, exits)
     repeats = False
     ranked, _ = check_order(matched_all, lambda i: other(i) and near(i), REPEAT_CANDIDATES)
     for i in ranked:
-        if not counts and _never_a_branch(loc, i, exits):
+        if not counts and (i in alike or _never_a_branch(loc, i, exits)):
             continue
         fit = loc._fit(i, features, matched_all[i].rotation_rad, config.verify_inliers, exits, 0.0)
         if fit is None or fit.inliers < config.verify_inliers:

@@ -20,7 +20,7 @@ from pipemap.localizer.ports import (
 )
 from pipemap.localizer.similarity import SetMatch
 from pipemap.localizer.topomap import TopoMap
-from pipemap.localizer.twoview import SweepFeatures, stored_features
+from pipemap.localizer.twoview import SweepFeatures, TwoViewFit, stored_features
 from tests.conftest import PaperSet
 from tests.localizer.test_new_branch import CROSS, DRIFTING, Y, _to_the_twin, _turned
 
@@ -323,3 +323,78 @@ def test_every_assignment_a_fit_agrees_with_is_one_of_the_port_assignments(
             assert port_rotations(ports, exits, tolerance) == tuple(
                 r for r, _ in port_assignments(ports, exits, tolerance)
             )
+
+
+class _RepeatsAsked:
+    """The parts of a localizer :func:`branching._repeats` reads, for a visit whose
+    sweep the keypoints of every junction asked fit (each fit asked is recorded):
+    junctions 0..5 known, all near by odometry, ranked by ``similarity``."""
+
+    def __init__(self, similarity: list[float]) -> None:
+        self.config = LocalizerConfig()
+        self.fitted: list[int] = []
+        self._hypotheses = self
+        self._odometry = self
+        self.map = self
+        self.matched = [SetMatch(s, 0, 0.0, 0.0, 0.0) for s in similarity]
+
+    def near(self, node: int) -> bool:
+        return True
+
+    def unused(self, node: int) -> bool:
+        return False
+
+    def _excluded(self) -> None:
+        return None
+
+    def _allowed_rotations(self, node: int, exits: object, turn: float) -> None:
+        return None
+
+    def arrival_conflict_at_every_turn(self, node: int, exits: object, tolerance: float) -> bool:
+        return False
+
+    def arrival_conflict(self, node: int, ports: object, exits: object) -> None:
+        return None
+
+    def _fit(self, node: int, *args: object) -> TwoViewFit:
+        self.fitted.append(node)
+        return TwoViewFit(0.0, 0.0, 2 * self.config.verify_inliers, 300)
+
+    def _ports_of(self, node: int, exits: object, rotation_rad: float) -> None:
+        return None
+
+    def _evidence(self, node: int, ports: object) -> float:
+        return 0.0
+
+
+@pytest.mark.parametrize(
+    ("alike", "counts", "fitted"),
+    [((3,), False, []), ((), False, [3]), ((5,), False, [3]), ((3,), True, [3])],
+    ids=["look-alike-asked-before", "no-look-alike", "another-look-alike", "answer-counts"],
+)
+def test_a_look_alike_is_asked_once_whether_it_is_a_branch(
+    alike: tuple[int, ...], counts: bool, fitted: list[int]
+) -> None:
+    # Junction 3 ranks first among those that may show the look repeats, 4 next.
+    # Where 3 is a look-alike the visit named, alike_branches asked already whether
+    # it is a branch (it is none: branches hold 1 alone): whether the look repeats
+    # counts for nothing then, and 3 is not fitted again, nor 4 in its stead (the
+    # ranking stays). Any other junction is fitted, and so is 3 where the answer
+    # counts (it could make the visit new).
+    loc = _RepeatsAsked([0.1, 0.9, 0.2, 0.8, 0.7, 0.3])
+    branches = [branching.Branch(1, None, None)]
+    fits: dict[int, branching.Fit] = {}
+    repeats = branching._repeats(
+        loc,  # type: ignore[arg-type]
+        branches,
+        None,  # type: ignore[arg-type]
+        loc.matched,
+        T,
+        0,
+        fits,
+        counts,
+        alike,
+    )
+    assert loc.fitted == fitted
+    assert repeats == bool(fitted) and [b.node for b in branches] == [1, *fitted]
+    assert sorted(fits) == fitted
