@@ -19,7 +19,8 @@ copies; the 10 000 repeat the first 1000; ``--no-index`` screens every one of th
 one core; wall and CPU time per decision (the median over queries of each query's
 quickest of N tries, 5 by default), the same with the refinement cache emptied
 before each try (``decision_cold_ms``), and the memory kept per known junction (also as
-a lamp-lit camera's localizer keeps 100 of them, ``memory_per_junction_lamp_kib``).
+a lamp-lit camera's localizer keeps 100 of them, ``memory_per_junction_lamp_kib``),
+array by array (``memory_parts_kib``; ``--px`` sets the sets' size, 400 by default).
 Agreement is measured against the stored reference
 values of all 55 pairs (``tests/localizer/data/paper_reference.json``, which a test
 keeps current); the reference is timed on K pairs (default 3). ``--write-reference``
@@ -144,6 +145,30 @@ def _kept_per_junction_kib(localizer: Localizer) -> float:
     return held / localizer.known_count / 1024
 
 
+def _kept_parts_kib(localizer: Localizer) -> dict[str, float]:
+    """What each known junction keeps, array by array (KiB a junction): the screen's
+    rows and window norms, the refinement's compact images, the index's descriptor,
+    and the keypoints' descriptors, positions and counts per image."""
+    matcher = localizer._matcher
+    known = localizer.known_count
+    arrays = matcher._screening_arrays()
+    rows, norms = (0, 0) if arrays is None else (arrays[0].nbytes, arrays[1].nbytes)
+    fine = sum(s.fine_images.values.nbytes for s in matcher._sets if s.fine_images is not None)
+    features = localizer._features
+    parts = {
+        "screen_rows": rows,
+        "screen_norms": norms,
+        "refine_images": fine,
+        "index": matcher._index.nbytes(),
+        "keypoint_descriptors": sum(f.descriptors.nbytes for f in features),
+        "keypoint_positions": sum(f.points.nbytes for f in features),
+        "keypoint_counts": sum(f.per_image.nbytes for f in features),
+    }
+    kib = {name: round(size / known / 1024, 2) for name, size in parts.items()}
+    kib["keypoints_per_junction"] = round(sum(len(f) for f in features) / known, 1)
+    return kib
+
+
 def _forget_after(localizer: Localizer, count: int, saved: bytes) -> None:
     """Undo the decisions since the localizer knew ``count`` junctions (the index
     only grows by appending, so truncating it is exact); ``saved`` is the map then,
@@ -194,6 +219,7 @@ def decision_benchmark(
     known = 0
     most_inliers = 0
     memory = 0.0
+    parts: dict[str, float] = {}
     for size in sizes:
         localizer, distractors = _distractor_localizer(queries, size, rng)
         if not index:  # every junction screened, however many (as below INDEX_ABOVE)
@@ -223,6 +249,7 @@ def decision_benchmark(
         cold_ms[str(size)] = round(statistics.median(colds) * 1000, 2)
         cpu_ms[str(size)] = round(statistics.median(cpus) * 1000, 2)
         memory = _kept_per_junction_kib(localizer)
+        parts = _kept_parts_kib(localizer)
         # Beside what each junction keeps: the refinement cache's few sets, a fixed
         # sum (the most it holds: its size in sets times what each of the last held).
         held = localizer._matcher._fine_cache
@@ -244,6 +271,7 @@ def decision_benchmark(
             for mode, count in rebuilds.items()
         },
         "memory_per_junction_kib": round(memory, 1),
+        "memory_parts_kib": parts,
         # The same junctions as a lamp-lit camera's localizer keeps them (normalised
         # images: their refinement images on a 1/256 grey-level grid).
         "memory_per_junction_lamp_kib": round(

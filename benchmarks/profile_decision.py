@@ -4,9 +4,10 @@ among ``--known`` distractors, the refinement cache emptied before each, as most
 decisions of a real run find it).
 
 Usage: ``python benchmarks/profile_decision.py [--known N] [--tries K] [--top T]
-[--phases]``; prints the CPU time per decision without the profiler, then the
-profile of the same decisions: a decision's phases (cumulative), and the ``T``
-functions that take most time of their own (``tottime``). With ``--phases``, it
+[--px P] [--phases]`` (``--px``: the sets' size, 400 by default); prints the CPU
+time per decision without the profiler, then the profile of the same decisions: a
+decision's phases (cumulative), and the ``T`` functions that take most time of
+their own (``tottime``). With ``--phases``, it
 prints instead, as JSON, the median CPU time of each phase of a decision timed by
 the localizer's own clock (:mod:`localizer.phases`), the matcher's preparation of
 the sweep split from the rest of ``ncc``, without the profiler's overhead (which
@@ -46,13 +47,14 @@ def main() -> int:
     parser.add_argument("--known", type=int, default=10, help="distractor junctions (10)")
     parser.add_argument("--tries", type=int, default=3, help="decisions per query (3)")
     parser.add_argument("--top", type=int, default=25, help="functions to print (25)")
+    parser.add_argument("--px", type=int, default=400, help="image size (400)")
     parser.add_argument(
         "--phases", action="store_true", help="median CPU ms of each phase, as JSON"
     )
     args = parser.parse_args()
     keep_freed_memory()
     names = sorted(p.name for p in args.sets.iterdir() if p.is_dir())
-    queries = [bench.resized(load_image_set(args.sets / n), 400) for n in names]
+    queries = [bench.resized(load_image_set(args.sets / n), args.px) for n in names]
     localizer, _ = bench._distractor_localizer(queries, args.known, np.random.default_rng(7))
     saved = pickle.dumps(localizer.map, protocol=pickle.HIGHEST_PROTOCOL)
     if args.phases:
@@ -121,6 +123,7 @@ def phases(localizer: Localizer, queries: list, known: int, tries: int, saved: b
                     per_phase.setdefault(phase, []).append(seconds * 1000)
             bench._forget_after(localizer, known, saved)
     return {
+        "resolution_px": queries[0].width,
         "known": known,
         "decisions": len(queries) * tries,
         "cpu_ms": {k: round(statistics.median(per_phase[k]), 2) for k in _PHASE_ORDER},

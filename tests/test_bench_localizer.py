@@ -46,3 +46,15 @@ def test_cold_tries_rebuild_the_candidates_spectra_and_warm_ones_do_not(
     assert set(result["decision_cold_ms"]) == set(result["decision_ms"]) == {"4"}
     assert result["known"] == 0 and result["two_view"] is True
     assert Path(bench.__file__).name == "bench_localizer.py"
+
+
+def test_the_memory_parts_add_up_to_what_a_junction_keeps(
+    bench: ModuleType, paper_sets: dict[str, PaperSet]
+) -> None:
+    sets = {name: paper_sets[name].images for name in sorted(paper_sets)[:3]}
+    result = bench.decision_benchmark(sets, [4], px=96, repeat=1)
+    parts = dict(result["memory_parts_kib"])
+    assert parts.pop("keypoints_per_junction") > 0
+    assert min(parts.values()) >= 0 and parts["keypoint_descriptors"] > 0
+    # Each part rounded to 0.01 KiB, the whole to 0.1.
+    assert sum(parts.values()) == pytest.approx(result["memory_per_junction_kib"], abs=0.1)
