@@ -33,7 +33,7 @@ def pipemap(*args: str, timeout: float = 300) -> subprocess.CompletedProcess[str
     )
 
 
-def one_line(done: subprocess.CompletedProcess[str], status: int, *texts: str) -> None:
+def assert_one_line(done: subprocess.CompletedProcess[str], status: int, *texts: str) -> None:
     """Exit ``status`` and one line on standard error holding every one of ``texts``."""
     assert done.returncode == status, done.stderr
     assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
@@ -96,7 +96,7 @@ def test_a_log_cut_before_its_run_metadata_is_one_line(recorded_run: Path, tmp_p
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(data[:40])  # the header, and a few bytes of the metadata record
     for command in ("info", "replay"):
-        one_line(pipemap(command, str(cut)), 2, "cut short before its pipemap.run metadata")
+        assert_one_line(pipemap(command, str(cut)), 2, "cut short before its pipemap.run metadata")
 
 
 def test_info_counts_only_the_sweeps_a_replay_keeps(recorded_run: Path, tmp_path: Path) -> None:
@@ -256,7 +256,7 @@ def image_set(tmp_path: Path) -> Path:
 def test_an_empty_image_in_an_image_set_is_one_line(image_set: Path, command: str) -> None:
     (image_set / "camera_image2.png").write_bytes(b"")
     done = pipemap(command, str(image_set), str(image_set))
-    one_line(done, 2, "camera_image2.png: empty file, not an image")
+    assert_one_line(done, 2, "camera_image2.png: empty file, not an image")
 
 
 @pytest.mark.parametrize("command", ["match", "map"])
@@ -268,7 +268,7 @@ def test_a_damaged_png_in_an_image_set_is_one_line_and_no_libpng(
     data[len(data) // 2] ^= 0x55
     path.write_bytes(bytes(data))
     done = pipemap(command, str(image_set), str(image_set))
-    one_line(done, 2, "camera_image3.png: a corrupt PNG image (CRC mismatch")
+    assert_one_line(done, 2, "camera_image3.png: a corrupt PNG image (CRC mismatch")
     assert "libpng" not in done.stderr
 
 
@@ -334,7 +334,7 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     done = pipemap(*OUTPUTS[name](str(STORED), unwritable), timeout=120)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    one_line(done, 2, f"cannot write in folder {unwritable}")
+    assert_one_line(done, 2, f"cannot write in folder {unwritable}")
     cpu_s = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     assert cpu_s < 4.0, f"the check came after the work ({cpu_s:.1f} s of CPU)"
 
@@ -352,7 +352,7 @@ def test_folder_outputs_are_replaced_only_with_force(
     folder = tmp_path / output
     (folder / "0099").mkdir(parents=True)  # an earlier run's sweep, or anything else
     (folder / "keep.txt").write_text("mine")
-    one_line(pipemap(*args, str(folder)), 2, "refusing to replace them without --force")
+    assert_one_line(pipemap(*args, str(folder)), 2, "refusing to replace them without --force")
     done = pipemap(*args, str(folder), "--force")
     assert done.returncode == 0, done.stderr
     assert (folder / "keep.txt").read_text() == "mine"  # --force replaces only its own files

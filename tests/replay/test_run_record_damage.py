@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from pipemap.recorder import METADATA_RUN
-from tests.test_faults import STORED, one_line, pipemap
+from tests.test_faults import STORED, assert_one_line, pipemap
 
 
 @pytest.fixture(scope="module")
@@ -38,4 +38,4 @@ def test_info_says_the_settings_are_lost(damaged: Path) -> None:
 @pytest.mark.parametrize("command", ["replay", "score"])
 def test_a_replay_refuses_rather_than_invent_the_settings(command: str, damaged: Path) -> None:
     done = pipemap(command, str(damaged))
-    one_line(done, 2, "its pipemap.run record is damaged: the run's settings are lost")
+    assert_one_line(done, 2, "its pipemap.run record is damaged: the run's settings are lost")

@@ -22,7 +22,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from tests.test_faults import STORED, one_line, pipemap
+from tests.test_faults import STORED, assert_one_line, pipemap
 
 OTHER = STORED.parent / "paper_active.mcap"
 
@@ -87,7 +87,7 @@ def test_a_merge_of_two_runs_is_refused_in_one_line(
     out = tmp_path / ("out.rrd" if command == "view" else "out.json")
     saved = {"replay": ["-o", str(out)], "score": ["--save-results", str(out)]}
     done = pipemap(command, str(log), *saved.get(command, ["--save", str(out)]))
-    one_line(done, 2, f"pipemap: error: {log}: holds 2 runs (2 pipemap.run records")
+    assert_one_line(done, 2, f"pipemap: error: {log}: holds 2 runs (2 pipemap.run records")
     assert "keep each run in a file of its own" in done.stderr
     assert list(tmp_path.iterdir()) == ([] if summary else [log])
 
@@ -111,7 +111,7 @@ def test_two_logs_joined_end_to_end_are_named_and_parted_as_said(tmp_path: Path)
 
     for command in ("replay", "score"):
         done = pipemap(command, str(joined))
-        one_line(
+        assert_one_line(
             done, 2, f"holds two MCAP files joined end to end (the second begins at byte {at})"
         )
         assert f"part them with head -c {at} and tail -c +{at + 1}" in done.stderr
