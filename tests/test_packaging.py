@@ -131,9 +131,10 @@ def _from_checkout(bin_dir: Path, *args: str) -> subprocess.CompletedProcess[str
 def test_a_plain_install_records_from_the_checkout_folder(
     plain_install: Path, tmp_path: Path
 ) -> None:
+    # tree:2 (S, n1: 3 sweeps): the writer process starts as for any network.
     log = tmp_path / "run.mcap"
     done = _from_checkout(
-        plain_install, "record", "--network", "paper", "--resolution", "32", "-o", str(log)
+        plain_install, "record", "--network", "tree:2", "--resolution", "32", "-o", str(log)
     )
     assert done.returncode in (0, 1), done.stderr  # 1: a tour that did not cover it all
     assert "No module named" not in done.stderr
@@ -147,7 +148,7 @@ def test_a_plain_install_batches_from_the_checkout_folder(
 ) -> None:
     spec = tmp_path / "one.toml"
     spec.write_text(
-        'description = "one run"\n[grid]\nnetwork = ["paper"]\nseed = [0]\n'
+        'description = "one run"\n[grid]\nnetwork = ["tree:2"]\nseed = [0]\n'
         'condition = ["perfect"]\nresolution = [32]\nrule = ["default"]\n'
     )
     out = tmp_path / "out"

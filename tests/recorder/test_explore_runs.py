@@ -144,14 +144,19 @@ def _images_alone(threshold: float, **_: object) -> LocalizerConfig:
     )
 
 
+#: The loop network of the forced-decision runs below (32 px, a few junctions).
+LOOP = "grid:2x2"
+
+
 def test_a_false_merge_every_visit_ends_the_run(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     # At -1, with the exits not compared, every visit is taken for a known junction.
-    # (With them compared, this run maps right: the test below.)
+    # (With them compared, this run maps right: the test below.) The smallest loop,
+    # grid:2x2, stops as grid:3x3 does, after two false merges, at half the cost.
     monkeypatch.setattr(session, "LocalizerConfig", _images_alone)
     path = tmp_path / "merge.mcap"
-    result = _record(path, "grid:3x3", 32, threshold=-1.0)
+    result = _record(path, LOOP, 32, threshold=-1.0)
     assert result.status == "map inconsistent"  # type: ignore[attr-defined]
     assert result.duration_ns < 600 * 10**9  # type: ignore[attr-defined]
     source = FileSource(path)
@@ -170,8 +175,11 @@ def test_the_exits_alone_keep_a_threshold_of_minus_1_from_merging(tmp_path: Path
     # The odometry check off, online and in the replay: the dead reckoning would pass
     # over most wrong candidates before their ports are compared.
     path = tmp_path / "checked.mcap"
+    # On grid:2x2 every corner has the same two ports at a right angle: only their
+    # rotation, measured from the images, tells the candidates apart (three visits
+    # pass a wrong one over).
     settings = {"threshold": -1.0, "lamp_strength": 0.0, "odometry_check": False}
-    result = _record(path, "grid:3x3", 32, **settings)
+    result = _record(path, LOOP, 32, **settings)
     assert result.status == "finished" and result.ok  # type: ignore[attr-defined]
     source = FileSource(path)
     config = LocalizerConfig(threshold=-1.0, odometry_check=False)

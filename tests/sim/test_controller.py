@@ -82,14 +82,17 @@ def test_revisits_sweep_from_where_the_first_visit_did(paper_world, tours) -> No
 
 
 @pytest.mark.parametrize(
-    "seed, bend",
+    "spec, seed, bend",
     [
-        (4, True),  # gentle corners, no opening to the side rays: found from the gyro
-        (5, False),  # a dead end 0.9 m from the start, as many pipes: not the start
+        # A corner of 20 degrees (n2), no opening to the side rays: found from the gyro.
+        ("tree:4", 8, True),
+        # A dead end (n4) 0.81 m from the start, as many pipes: not the start. Corners
+        # of 66 to 84 degrees, none passed as a bend.
+        ("tree:5", 2, False),
     ],
 )
-def test_random_trees_are_fully_explored(seed: int, bend: bool) -> None:
-    network = build_network("tree:10", seed=seed)
+def test_random_trees_are_fully_explored(spec: str, seed: int, bend: bool) -> None:
+    network = build_network(spec, seed=seed)
     with World(network, seed=seed, texture_px=32) as world:
         result = autonomous_run(world, TINY, seed=seed)
     assert result.status is RunStatus.FINISHED
