@@ -33,6 +33,7 @@ from __future__ import annotations
 import os
 import re
 import shlex
+import signal
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -198,18 +199,25 @@ def _run_page(blocks: list[Block], tmp_path: Path) -> int:
     env.pop("PYTHONPATH", None)  # the installed pipemap, as a user runs it
     ran = 0
     for block in blocks:
-        try:
-            done = subprocess.run(
-                ["bash", "-e", "-o", "pipefail", "-c", block.script],
-                cwd=work,
-                env=env,
-                capture_output=True,
-                text=True,
-                timeout=BLOCK_TIMEOUT_S,
-                check=False,
-            )
-        except subprocess.TimeoutExpired:
-            pytest.fail(f"{block.name} did not finish in {BLOCK_TIMEOUT_S} s:\n{block.script}")
+        # A session of its own, so that a block that times out is stopped whole: the
+        # commands bash started (a simulator run, a benchmark) go with it, not on as
+        # orphans that load the machine after the test has failed.
+        with subprocess.Popen(
+            ["bash", "-e", "-o", "pipefail", "-c", block.script],
+            cwd=work,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        ) as proc:
+            try:
+                stdout, stderr = proc.communicate(timeout=BLOCK_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.communicate()
+                pytest.fail(f"{block.name} did not finish in {BLOCK_TIMEOUT_S} s:\n{block.script}")
+        done = subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
         if done.returncode != 0:
             pytest.fail(
                 f"{block.name} exited {done.returncode}:\n{block.script}\n"
@@ -355,6 +363,25 @@ def test_a_failing_command_fails_the_page(tmp_path: Path) -> None:
     block = Block(ROOT / "README.md", 1, "false\ntrue\n", None)
     with pytest.raises(pytest.fail.Exception, match="exited 1"):
         _run_page([block], tmp_path)
+
+
+def test_a_block_that_times_out_is_stopped_with_what_it_started(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A timed-out block's commands are stopped too, not left running as orphans."""
+    monkeypatch.setattr(sys.modules[__name__], "BLOCK_TIMEOUT_S", 2)
+    pid_file = tmp_path / "child.pid"
+    block = Block(ROOT / "README.md", 1, f"sleep 60 &\necho $! > {pid_file}\nwait\n", None)
+    with pytest.raises(pytest.fail.Exception, match="did not finish in 2 s"):
+        _run_page([block], tmp_path)
+    child = int(pid_file.read_text())
+    try:
+        os.kill(child, 0)
+    except ProcessLookupError:
+        return  # gone, as it should be
+    # A zombie not yet reaped by init is stopped too: it holds no state but Z.
+    state = Path(f"/proc/{child}/stat").read_text().split()[2]
+    assert state == "Z", f"the block's sleep {child} is still running ({state})"
 
 
 def test_a_block_sees_the_checkout_and_shared(tmp_path: Path) -> None:
